@@ -1,0 +1,223 @@
+//! Reading and writing images: OpenEXR (scan-line, 32-bit float) and PNG/JPEG.
+//! Outputs are written to a temporary name and renamed, so no reader sees half a file.
+
+use std::path::{Path, PathBuf};
+
+use crate::color::{linear_to_srgb, rgb, Rgb};
+
+/// A linear RGB image, row-major, top row first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<Rgb>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    #[error("{path}: cannot read image: {reason}")]
+    Read { path: PathBuf, reason: String },
+    #[error("{path}: cannot write image: {reason}")]
+    Write { path: PathBuf, reason: String },
+}
+
+impl Image {
+    pub fn new(width: usize, height: usize) -> Image {
+        Image { width, height, pixels: vec![Rgb::BLACK; width * height] }
+    }
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> Rgb {
+        self.pixels[y * self.width + x]
+    }
+    pub fn mean(&self) -> Rgb {
+        let n = self.pixels.len().max(1) as f64;
+        let s = self.pixels.iter().fold([0.0f64; 3], |a, p| {
+            [a[0] + p.r as f64, a[1] + p.g as f64, a[2] + p.b as f64]
+        });
+        Rgb::from_array(s.map(|v| (v / n) as f32))
+    }
+
+    /// Loads EXR, PNG or JPEG by extension. Values are returned as stored (no sRGB decoding).
+    pub fn load(path: &Path) -> Result<Image, ImageError> {
+        let err = |reason: String| ImageError::Read { path: path.to_path_buf(), reason };
+        if !path.exists() {
+            return Err(err("file not found".into()));
+        }
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        if ext == "exr" {
+            return load_exr(path).map_err(err);
+        }
+        let img = image::ImageReader::open(path)
+            .map_err(|e| err(e.to_string()))?
+            .with_guessed_format()
+            .map_err(|e| err(e.to_string()))?
+            .decode()
+            .map_err(|e| err(e.to_string()))?;
+        let rgb32 = img.to_rgb32f();
+        let (w, h) = (rgb32.width() as usize, rgb32.height() as usize);
+        if w == 0 || h == 0 {
+            return Err(err("image has no pixels".into()));
+        }
+        let pixels = rgb32.pixels().map(|p| rgb(p.0[0], p.0[1], p.0[2])).collect();
+        Ok(Image { width: w, height: h, pixels })
+    }
+
+    /// Alpha channel (or luminance for images without one), as stored, for opacity masks.
+    pub fn load_alpha_or_luminance(path: &Path) -> Result<Image, ImageError> {
+        let err = |reason: String| ImageError::Read { path: path.to_path_buf(), reason };
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        if ext == "exr" {
+            return Image::load(path);
+        }
+        let img = image::ImageReader::open(path)
+            .map_err(|e| err(e.to_string()))?
+            .with_guessed_format()
+            .map_err(|e| err(e.to_string()))?
+            .decode()
+            .map_err(|e| err(e.to_string()))?;
+        if !img.color().has_alpha() {
+            return Image::load(path);
+        }
+        let rgba = img.to_rgba32f();
+        let (w, h) = (rgba.width() as usize, rgba.height() as usize);
+        let pixels = rgba.pixels().map(|p| Rgb::splat(p.0[3])).collect();
+        Ok(Image { width: w, height: h, pixels })
+    }
+
+    /// Writes a scan-line float EXR atomically.
+    pub fn save_exr(&self, path: &Path) -> Result<(), ImageError> {
+        use exr::prelude::*;
+        let err = |reason: String| ImageError::Write { path: path.to_path_buf(), reason };
+        let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+            let c = self.pixels[p.1 * self.width + p.0];
+            (c.r, c.g, c.b)
+        });
+        let layer = Layer::new(
+            (self.width, self.height),
+            LayerAttributes::named("rgb"),
+            Encoding::SMALL_LOSSLESS,
+            channels,
+        );
+        let image = exr::image::Image::from_layer(layer);
+        write_atomically(path, |tmp| {
+            image.write().to_file(tmp).map_err(|e| e.to_string())
+        })
+        .map_err(err)
+    }
+
+    /// Writes an 8-bit sRGB PNG after multiplying by `2^exposure`, atomically.
+    pub fn save_png(&self, path: &Path, exposure: f32) -> Result<(), ImageError> {
+        let err = |reason: String| ImageError::Write { path: path.to_path_buf(), reason };
+        let scale = 2f32.powf(exposure);
+        let mut buf = Vec::with_capacity(self.pixels.len() * 3);
+        for p in &self.pixels {
+            for v in p.to_array() {
+                let v = if v.is_finite() { v * scale } else { 0.0 };
+                buf.push((linear_to_srgb(v) * 255.0 + 0.5) as u8);
+            }
+        }
+        write_atomically(path, |tmp| {
+            image::save_buffer_with_format(
+                tmp,
+                &buf,
+                self.width as u32,
+                self.height as u32,
+                image::ExtendedColorType::Rgb8,
+                image::ImageFormat::Png,
+            )
+            .map_err(|e| e.to_string())
+        })
+        .map_err(err)
+    }
+
+    /// Saves by extension (.exr or .png).
+    pub fn save(&self, path: &Path) -> Result<(), ImageError> {
+        match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+            Some("png") => self.save_png(path, 0.0),
+            _ => self.save_exr(path),
+        }
+    }
+}
+
+/// Runs `write` on a temporary file beside `path`, then renames it into place.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), String>,
+) -> Result<(), String> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !dir.exists() {
+        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
+    let name = path.file_name().ok_or("not a file name")?.to_string_lossy().to_string();
+    let ext = path.extension().map(|e| e.to_string_lossy().to_string()).unwrap_or_default();
+    // Keep the extension last: some writers pick the format from it.
+    let tmp = dir.join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
+    match write(&tmp) {
+        Ok(()) => std::fs::rename(&tmp, path).map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            e.to_string()
+        }),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
+        }
+    }
+}
+
+fn load_exr(path: &Path) -> Result<Image, String> {
+    use exr::prelude::*;
+    let img = read_first_rgba_layer_from_file(
+        path,
+        |res: Vec2<usize>, _| crate::imageio::Image::new(res.0, res.1),
+        |img: &mut crate::imageio::Image, pos: Vec2<usize>, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let w = img.width;
+            img.pixels[pos.1 * w + pos.0] = rgb(r, g, b);
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let image: crate::imageio::Image = img.layer_data.channel_data.pixels;
+    if image.width == 0 || image.height == 0 {
+        return Err("image has no pixels".into());
+    }
+    Ok(image)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_round_trip_and_png_written() {
+        let dir = std::env::temp_dir().join(format!("skelight-imageio-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut img = Image::new(3, 2);
+        for (i, p) in img.pixels.iter_mut().enumerate() {
+            *p = rgb(i as f32, 0.5 * i as f32, 100.0);
+        }
+        let exr = dir.join("a.exr");
+        img.save_exr(&exr).unwrap();
+        assert_eq!(Image::load(&exr).unwrap(), img);
+        let png = dir.join("a.png");
+        img.save_png(&png, 0.0).unwrap();
+        let back = Image::load(&png).unwrap();
+        assert_eq!((back.width, back.height), (3, 2));
+        // No temporary files are left behind.
+        let leftovers = std::fs::read_dir(&dir).unwrap().filter(|e| {
+            e.as_ref().unwrap().file_name().to_string_lossy().contains(".tmp")
+        });
+        assert_eq!(leftovers.count(), 0);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn missing_and_corrupt_files_are_errors() {
+        let dir = std::env::temp_dir().join(format!("skelight-imageio-bad-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let e = Image::load(&dir.join("nope.png")).unwrap_err().to_string();
+        assert!(e.contains("nope.png") && e.contains("not found"), "{e}");
+        let bad = dir.join("bad.exr");
+        std::fs::write(&bad, b"not an exr").unwrap();
+        assert!(Image::load(&bad).unwrap_err().to_string().contains("bad.exr"));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -1,0 +1,351 @@
+//! Random numbers, warps from the unit square, and discrete distributions.
+
+use crate::math::{vec2, vec3, Vec2, Vec3, INV_2PI, INV_4PI, INV_PI, PI};
+
+/// 64-bit finaliser (SplitMix64): turns correlated inputs into independent-looking bits.
+#[inline]
+pub fn mix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// PCG32 generator (O'Neill 2014). Streams are selected by hashing, so that any two user
+/// seeds, pixels or passes give independent sequences (adjacent seeds are not correlated).
+#[derive(Clone, Debug)]
+pub struct Rng {
+    state: u64,
+    inc: u64,
+}
+
+impl Rng {
+    /// A generator for the `(seed, a, b)` triple, e.g. (user seed, pixel, pass).
+    pub fn new(seed: u64, a: u64, b: u64) -> Rng {
+        let h1 = mix64(seed ^ mix64(a ^ mix64(b)));
+        let h2 = mix64(h1 ^ 0xD1B5_4A32_D192_ED03);
+        let mut rng = Rng {
+            state: 0,
+            inc: (h2 << 1) | 1,
+        };
+        rng.next_u32();
+        rng.state = rng.state.wrapping_add(h1);
+        rng.next_u32();
+        rng
+    }
+    #[inline]
+    pub fn next_u32(&mut self) -> u32 {
+        let old = self.state;
+        self.state = old
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(self.inc);
+        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
+        let rot = (old >> 59) as u32;
+        xorshifted.rotate_right(rot)
+    }
+    /// Uniform in [0, 1).
+    #[inline]
+    pub fn next_f32(&mut self) -> f32 {
+        (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+    }
+    #[inline]
+    pub fn next_2d(&mut self) -> Vec2 {
+        vec2(self.next_f32(), self.next_f32())
+    }
+    /// Full generator state, for checkpoints.
+    pub fn state(&self) -> (u64, u64) {
+        (self.state, self.inc)
+    }
+    pub fn from_state(state: u64, inc: u64) -> Rng {
+        Rng { state, inc }
+    }
+}
+
+/// Cosine-weighted hemisphere around +z (Malley's method on the concentric disk).
+#[inline]
+pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = concentric_disk(u);
+    let z = (1.0 - d.x * d.x - d.y * d.y).max(0.0).sqrt();
+    vec3(d.x, d.y, z)
+}
+
+#[inline]
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * INV_PI
+}
+
+/// Uniform point on the unit disk (Shirley–Chiu concentric mapping).
+#[inline]
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let a = 2.0 * u.x - 1.0;
+    let b = 2.0 * u.y - 1.0;
+    if a == 0.0 && b == 0.0 {
+        return vec2(0.0, 0.0);
+    }
+    let (r, phi) = if a * a > b * b {
+        (a, (PI / 4.0) * (b / a))
+    } else {
+        (b, PI / 2.0 - (PI / 4.0) * (a / b))
+    };
+    vec2(r * phi.cos(), r * phi.sin())
+}
+
+#[inline]
+pub fn uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    vec3(r * phi.cos(), r * phi.sin(), z)
+}
+
+pub const UNIFORM_SPHERE_PDF: f32 = INV_4PI;
+
+/// Uniform direction in the cone around +z with the given cosine of the half-angle.
+#[inline]
+pub fn uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
+    let cos_t = 1.0 - u.x * (1.0 - cos_max);
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    vec3(phi.cos() * sin_t, phi.sin() * sin_t, cos_t)
+}
+
+#[inline]
+pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
+    INV_2PI / (1.0 - cos_max)
+}
+
+/// Uniform barycentrics (b1, b2) on a triangle.
+#[inline]
+pub fn uniform_triangle(u: Vec2) -> Vec2 {
+    let su = u.x.sqrt();
+    vec2(1.0 - su, u.y * su)
+}
+
+/// Balance heuristic for one sample from each of two strategies.
+#[inline]
+pub fn balance_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    if pdf_a + pdf_b > 0.0 {
+        pdf_a / (pdf_a + pdf_b)
+    } else {
+        0.0
+    }
+}
+
+/// Power heuristic (β = 2) for one sample from each of two strategies.
+#[inline]
+pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    let a = pdf_a * pdf_a;
+    let b = pdf_b * pdf_b;
+    if a + b > 0.0 && a.is_finite() {
+        a / (a + b)
+    } else if a.is_infinite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// Piecewise-constant 1D distribution over `n` bins, sampled by inverting its CDF.
+#[derive(Clone, Debug)]
+pub struct Distribution1D {
+    pub func: Vec<f32>,
+    cdf: Vec<f32>,
+    integral: f32,
+}
+
+impl Distribution1D {
+    /// Negative or non-finite weights count as zero; an all-zero input becomes uniform.
+    pub fn new(weights: &[f32]) -> Distribution1D {
+        let n = weights.len().max(1);
+        let mut func: Vec<f32> = weights
+            .iter()
+            .map(|&w| if w.is_finite() && w > 0.0 { w } else { 0.0 })
+            .collect();
+        if func.is_empty() {
+            func.push(0.0);
+        }
+        let mut cdf = Vec::with_capacity(n + 1);
+        cdf.push(0.0f32);
+        let mut acc = 0.0f64;
+        for &f in &func {
+            acc += f as f64;
+            cdf.push(acc as f32);
+        }
+        let mut integral = acc as f32;
+        if !(integral > 0.0) {
+            func.iter_mut().for_each(|f| *f = 1.0);
+            for (i, c) in cdf.iter_mut().enumerate() {
+                *c = i as f32;
+            }
+            integral = n as f32;
+        }
+        for c in cdf.iter_mut() {
+            *c /= integral;
+        }
+        cdf[n] = 1.0;
+        Distribution1D {
+            func,
+            cdf,
+            integral,
+        }
+    }
+    pub fn len(&self) -> usize {
+        self.func.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.func.is_empty()
+    }
+    /// Sum of the weights.
+    pub fn integral(&self) -> f32 {
+        self.integral
+    }
+    /// Probability of bin `i`.
+    #[inline]
+    pub fn pmf(&self, i: usize) -> f32 {
+        self.func[i] / self.integral
+    }
+    /// Picks a bin; returns (index, probability, `u` remapped to [0,1) inside the bin).
+    #[inline]
+    pub fn sample_discrete(&self, u: f32) -> (usize, f32, f32) {
+        let n = self.func.len();
+        // Largest i with cdf[i] <= u.
+        let i = (self.cdf.partition_point(|&c| c <= u).saturating_sub(1)).min(n - 1);
+        let mut i = i;
+        while self.func[i] == 0.0 && i + 1 < n {
+            i += 1;
+        }
+        while self.func[i] == 0.0 && i > 0 {
+            i -= 1;
+        }
+        let width = self.cdf[i + 1] - self.cdf[i];
+        let rem = if width > 0.0 {
+            ((u - self.cdf[i]) / width).clamp(0.0, 0.999_999_94)
+        } else {
+            0.5
+        };
+        (i, self.pmf(i), rem)
+    }
+}
+
+/// Piecewise-constant 2D distribution on [0,1]² (rows = v, columns = u).
+#[derive(Clone, Debug)]
+pub struct Distribution2D {
+    conditional: Vec<Distribution1D>,
+    marginal: Distribution1D,
+    width: usize,
+    height: usize,
+}
+
+impl Distribution2D {
+    pub fn new(weights: &[f32], width: usize, height: usize) -> Distribution2D {
+        let conditional: Vec<Distribution1D> = (0..height)
+            .map(|y| Distribution1D::new(&weights[y * width..(y + 1) * width]))
+            .collect();
+        let row_sums: Vec<f32> = (0..height)
+            .map(|y| {
+                weights[y * width..(y + 1) * width]
+                    .iter()
+                    .filter(|w| w.is_finite() && **w > 0.0)
+                    .sum()
+            })
+            .collect();
+        Distribution2D {
+            conditional,
+            marginal: Distribution1D::new(&row_sums),
+            width,
+            height,
+        }
+    }
+    /// Returns the point in [0,1]² and its density with respect to area on [0,1]².
+    pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
+        let (row, p_row, v_rem) = self.marginal.sample_discrete(u.y);
+        let (col, p_col, u_rem) = self.conditional[row].sample_discrete(u.x);
+        let p = vec2(
+            (col as f32 + u_rem) / self.width as f32,
+            (row as f32 + v_rem) / self.height as f32,
+        );
+        (p, p_row * p_col * (self.width * self.height) as f32)
+    }
+    /// Density at a point of [0,1]².
+    pub fn pdf(&self, p: Vec2) -> f32 {
+        let col = ((p.x * self.width as f32) as usize).min(self.width - 1);
+        let row = ((p.y * self.height as f32) as usize).min(self.height - 1);
+        self.marginal.pmf(row) * self.conditional[row].pmf(col) * (self.width * self.height) as f32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn adjacent_seeds_are_uncorrelated() {
+        let n = 20000;
+        let mut a = Rng::new(1001, 0, 0);
+        let mut b = Rng::new(1002, 0, 0);
+        let (mut sab, mut sa, mut sb, mut saa, mut sbb) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
+        for _ in 0..n {
+            let x = a.next_f32() as f64;
+            let y = b.next_f32() as f64;
+            sab += x * y;
+            sa += x;
+            sb += y;
+            saa += x * x;
+            sbb += y * y;
+        }
+        let nf = n as f64;
+        let cov = sab / nf - sa * sb / nf / nf;
+        let corr = cov / ((saa / nf - (sa / nf).powi(2)) * (sbb / nf - (sb / nf).powi(2))).sqrt();
+        // Standard error of a correlation estimate is 1/sqrt(n) ≈ 0.007; allow 5 of them.
+        assert!(corr.abs() < 5.0 / nf.sqrt(), "correlation {corr}");
+        assert!((sa / nf - 0.5).abs() < 0.01);
+    }
+
+    #[test]
+    fn distribution_1d_samples_in_proportion() {
+        let d = Distribution1D::new(&[1.0, 0.0, 3.0]);
+        let mut rng = Rng::new(7, 0, 0);
+        let mut counts = [0usize; 3];
+        let n = 40000;
+        for _ in 0..n {
+            let (i, p, rem) = d.sample_discrete(rng.next_f32());
+            assert!((0.0..1.0).contains(&rem));
+            assert!((p - d.pmf(i)).abs() < 1e-6);
+            counts[i] += 1;
+        }
+        assert_eq!(counts[1], 0);
+        let f = counts[2] as f64 / n as f64;
+        // Binomial standard error sqrt(p(1-p)/n) ≈ 0.0022; 5 sigma.
+        assert!((f - 0.75).abs() < 0.011, "{f}");
+    }
+
+    #[test]
+    fn distribution_2d_pdf_matches_sampling() {
+        let w = [1.0, 2.0, 0.0, 4.0, 0.5, 0.5];
+        let d = Distribution2D::new(&w, 3, 2);
+        let mut rng = Rng::new(3, 0, 0);
+        for _ in 0..1000 {
+            let (p, pdf) = d.sample(rng.next_2d());
+            assert!((d.pdf(p) - pdf).abs() < 1e-3 * pdf.max(1.0), "{p:?}");
+        }
+        // Density integrates to 1: sum over cells of pdf * cell area.
+        let total: f32 = (0..2)
+            .flat_map(|y| (0..3).map(move |x| (x, y)))
+            .map(|(x, y)| d.pdf(vec2((x as f32 + 0.5) / 3.0, (y as f32 + 0.5) / 2.0)) / 6.0)
+            .sum();
+        assert!((total - 1.0).abs() < 1e-4);
+    }
+
+    #[test]
+    fn warps_stay_on_their_domains() {
+        let mut rng = Rng::new(11, 0, 0);
+        for _ in 0..1000 {
+            let u = rng.next_2d();
+            let d = cosine_hemisphere(u);
+            assert!(d.z >= 0.0 && (d.length() - 1.0).abs() < 1e-4);
+            assert!((uniform_sphere(u).length() - 1.0).abs() < 1e-4);
+            let b = uniform_triangle(u);
+            assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6);
+        }
+    }
+}
