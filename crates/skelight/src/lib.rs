@@ -7,6 +7,7 @@
 pub mod color;
 pub mod geometry;
 pub mod imageio;
+pub mod material;
 pub mod math;
 pub mod sampling;
 pub mod texture;

@@ -1,0 +1,228 @@
+//! Materials: BSDFs with Mitsuba's semantics, plus the normal perturbations (bump and
+//! normal maps) applied before them. All BSDF directions are in the local shading frame
+//! (+z = shading normal); `wi` points towards the previous vertex, `wo` is the other one.
+//! `eval` returns f(wi, wo)·|cosθo|, so that `sample` weights are eval/pdf.
+
+mod coating;
+mod conductor;
+mod dielectric;
+mod diffuse;
+pub mod fresnel;
+pub mod microfacet;
+mod phong;
+mod plastic;
+
+pub use coating::Coating;
+pub use conductor::{Conductor, RoughConductor};
+pub use dielectric::{Dielectric, RoughDielectric, ThinDielectric};
+pub use diffuse::{Diffuse, RoughDiffuse};
+pub use phong::Phong;
+pub use plastic::{Plastic, RoughPlastic};
+
+use crate::color::Rgb;
+use crate::math::{vec3, Frame, Vec2, Vec3};
+use crate::texture::Texture;
+
+/// Which quantity a path carries: radiance (camera paths) or importance (light paths).
+/// Only refraction and shading normals treat the two differently.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransportMode {
+    Radiance,
+    Importance,
+}
+
+/// Per-query inputs a BSDF may read besides the directions.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfCtx {
+    pub uv: Vec2,
+    pub mode: TransportMode,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample {
+    pub wo: Vec3,
+    /// f·|cosθo| / pdf.
+    pub weight: Rgb,
+    /// Solid-angle density; for delta lobes the discrete probability of picking the lobe.
+    pub pdf: f32,
+    pub delta: bool,
+}
+
+/// What every BSDF model implements.
+pub trait BsdfModel {
+    /// f(wi, wo)·|cosθo| for the non-delta components.
+    fn eval(&self, ctx: &BsdfCtx, wi: Vec3, wo: Vec3) -> Rgb;
+    /// Density with which `sample` produces `wo` through its non-delta components.
+    fn pdf(&self, ctx: &BsdfCtx, wi: Vec3, wo: Vec3) -> f32;
+    /// Samples an outgoing direction (`u` picks a component, `u2` the direction).
+    fn sample(&self, ctx: &BsdfCtx, wi: Vec3, u: f32, u2: Vec2) -> Option<BsdfSample>;
+    /// Whether any component is non-delta (only then is light sampling useful).
+    fn has_smooth(&self) -> bool {
+        true
+    }
+    /// Whether the model transmits light through the surface (both sides are meaningful).
+    fn two_sided_transmission(&self) -> bool {
+        false
+    }
+}
+
+#[derive(Clone, Debug)]
+pub enum Bsdf {
+    Diffuse(Diffuse),
+    RoughDiffuse(RoughDiffuse),
+    Conductor(Conductor),
+    RoughConductor(RoughConductor),
+    Dielectric(Dielectric),
+    ThinDielectric(ThinDielectric),
+    RoughDielectric(RoughDielectric),
+    Plastic(Plastic),
+    RoughPlastic(RoughPlastic),
+    Phong(Phong),
+    Coating(Coating),
+    /// Front BSDF above the surface, back BSDF (mirrored) below it.
+    TwoSided(Box<Bsdf>, Box<Bsdf>),
+    /// Absorbs everything (emitters without a reflective surface).
+    Black,
+}
+
+macro_rules! dispatch {
+    ($self:expr, $m:ident => $e:expr, twosided($f:ident, $b:ident) => $t:expr, black => $k:expr) => {
+        match $self {
+            Bsdf::Diffuse($m) => $e,
+            Bsdf::RoughDiffuse($m) => $e,
+            Bsdf::Conductor($m) => $e,
+            Bsdf::RoughConductor($m) => $e,
+            Bsdf::Dielectric($m) => $e,
+            Bsdf::ThinDielectric($m) => $e,
+            Bsdf::RoughDielectric($m) => $e,
+            Bsdf::Plastic($m) => $e,
+            Bsdf::RoughPlastic($m) => $e,
+            Bsdf::Phong($m) => $e,
+            Bsdf::Coating($m) => $e,
+            Bsdf::TwoSided($f, $b) => $t,
+            Bsdf::Black => $k,
+        }
+    };
+}
+
+#[inline]
+fn flip(v: Vec3) -> Vec3 {
+    vec3(v.x, v.y, -v.z)
+}
+
+impl BsdfModel for Bsdf {
+    fn eval(&self, ctx: &BsdfCtx, wi: Vec3, wo: Vec3) -> Rgb {
+        dispatch!(self, m => m.eval(ctx, wi, wo),
+            twosided(f, b) => if wi.z >= 0.0 { f.eval(ctx, wi, wo) } else { b.eval(ctx, flip(wi), flip(wo)) },
+            black => Rgb::BLACK)
+    }
+    fn pdf(&self, ctx: &BsdfCtx, wi: Vec3, wo: Vec3) -> f32 {
+        dispatch!(self, m => m.pdf(ctx, wi, wo),
+            twosided(f, b) => if wi.z >= 0.0 { f.pdf(ctx, wi, wo) } else { b.pdf(ctx, flip(wi), flip(wo)) },
+            black => 0.0)
+    }
+    fn sample(&self, ctx: &BsdfCtx, wi: Vec3, u: f32, u2: Vec2) -> Option<BsdfSample> {
+        dispatch!(self, m => m.sample(ctx, wi, u, u2),
+            twosided(f, b) => if wi.z >= 0.0 {
+                f.sample(ctx, wi, u, u2)
+            } else {
+                b.sample(ctx, flip(wi), u, u2).map(|s| BsdfSample { wo: flip(s.wo), ..s })
+            },
+            black => None)
+    }
+    fn has_smooth(&self) -> bool {
+        dispatch!(self, m => m.has_smooth(), twosided(f, b) => f.has_smooth() || b.has_smooth(), black => false)
+    }
+    fn two_sided_transmission(&self) -> bool {
+        dispatch!(self, m => m.two_sided_transmission(), twosided(_f, _b) => false, black => false)
+    }
+}
+
+impl Bsdf {
+    /// Rough mean albedo, for choosing between layered lobes.
+    pub fn mean_albedo(&self) -> f32 {
+        match self {
+            Bsdf::Diffuse(d) => d.reflectance.mean().mean(),
+            Bsdf::RoughDiffuse(d) => d.reflectance.mean().mean(),
+            Bsdf::TwoSided(f, _) => f.mean_albedo(),
+            Bsdf::Black => 0.0,
+            _ => 0.5,
+        }
+    }
+    /// Whether the BSDF is exactly Lambertian (used by tests and the default scene).
+    pub fn is_diffuse(&self) -> bool {
+        matches!(self, Bsdf::Diffuse(_))
+    }
+}
+
+/// A change of shading normal computed from a texture before the BSDF is evaluated.
+#[derive(Clone, Debug)]
+pub enum Perturbation {
+    /// Height field: the normal tilts with the height gradient, scaled.
+    Bump { height: Texture, scale: f32 },
+    /// Tangent-space normal map in [0,1] encoding.
+    NormalMap { normals: Texture },
+}
+
+impl Perturbation {
+    /// New shading frame from the current one, the uv derivatives of position and the uv.
+    pub fn apply(&self, frame: &Frame, dpdu: Vec3, dpdv: Vec3, uv: Vec2) -> Frame {
+        let n = frame.n;
+        let new_n = match self {
+            Perturbation::Bump { height, scale } => {
+                let h = 1.0 / 1024.0;
+                let f = |du: f32, dv: f32| height.eval_scalar(Vec2 { x: uv.x + du, y: uv.y + dv });
+                let hu = (f(h, 0.0) - f(-h, 0.0)) / (2.0 * h) * scale;
+                let hv = (f(0.0, h) - f(0.0, -h)) / (2.0 * h) * scale;
+                let pu = dpdu + n * hu;
+                let pv = dpdv + n * hv;
+                let c = pu.cross(pv);
+                if c.length_squared() == 0.0 || !c.is_finite() {
+                    return *frame;
+                }
+                let c = c.normalize();
+                if c.dot(n) < 0.0 {
+                    -c
+                } else {
+                    c
+                }
+            }
+            Perturbation::NormalMap { normals } => {
+                let t = normals.eval(uv);
+                let local = vec3(2.0 * t.r - 1.0, 2.0 * t.g - 1.0, 2.0 * t.b - 1.0);
+                if local.length_squared() == 0.0 {
+                    return *frame;
+                }
+                frame.to_world(local.normalize())
+            }
+        };
+        if !new_n.is_finite() {
+            return *frame;
+        }
+        Frame::from_normal_tangent(new_n, frame.s)
+    }
+}
+
+/// A surface's material: its BSDF and an optional normal perturbation.
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub name: String,
+    pub bsdf: Bsdf,
+    pub perturbation: Option<Perturbation>,
+}
+
+impl Material {
+    pub fn new(name: impl Into<String>, bsdf: Bsdf) -> Material {
+        Material { name: name.into(), bsdf, perturbation: None }
+    }
+    /// The visible fallback for unsupported materials: magenta diffuse.
+    pub fn fallback(name: impl Into<String>) -> Material {
+        Material::new(
+            name,
+            Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(crate::color::rgb(0.8, 0.0, 0.8)) }),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests;

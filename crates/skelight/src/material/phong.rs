@@ -1,0 +1,76 @@
+//! Mitsuba 0.6's energy-normalised modified Phong model (the seeds' glossy material).
+
+use super::{BsdfCtx, BsdfModel, BsdfSample};
+use crate::color::Rgb;
+use crate::math::{vec3, Frame, Vec2, Vec3, INV_2PI, INV_PI, PI};
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
+use crate::texture::Texture;
+
+#[derive(Clone, Debug)]
+pub struct Phong {
+    pub diffuse: Texture,
+    pub specular: Texture,
+    pub exponent: f32,
+    /// Probability of sampling the specular lobe.
+    pub specular_weight: f32,
+}
+
+impl Phong {
+    pub fn new(diffuse: Texture, specular: Texture, exponent: f32) -> Phong {
+        let (d, s) = (diffuse.mean().mean(), specular.mean().mean());
+        let specular_weight = if d + s > 0.0 { s / (d + s) } else { 0.5 };
+        Phong { diffuse, specular, exponent, specular_weight }
+    }
+    fn lobe_pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let r = vec3(-wi.x, -wi.y, wi.z);
+        let c = r.dot(wo);
+        if c <= 0.0 {
+            0.0
+        } else {
+            (self.exponent + 1.0) * INV_2PI * c.powf(self.exponent)
+        }
+    }
+}
+
+impl BsdfModel for Phong {
+    fn eval(&self, ctx: &BsdfCtx, wi: Vec3, wo: Vec3) -> Rgb {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return Rgb::BLACK;
+        }
+        let r = vec3(-wi.x, -wi.y, wi.z);
+        let c = r.dot(wo);
+        let mut f = self.diffuse.eval(ctx.uv) * INV_PI;
+        if c > 0.0 {
+            f += self.specular.eval(ctx.uv) * ((self.exponent + 2.0) * INV_2PI * c.powf(self.exponent));
+        }
+        f * wo.z
+    }
+    fn pdf(&self, _: &BsdfCtx, wi: Vec3, wo: Vec3) -> f32 {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return 0.0;
+        }
+        self.specular_weight * self.lobe_pdf(wi, wo) + (1.0 - self.specular_weight) * cosine_hemisphere_pdf(wo.z)
+    }
+    fn sample(&self, ctx: &BsdfCtx, wi: Vec3, u: f32, u2: Vec2) -> Option<BsdfSample> {
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let wo = if u < self.specular_weight {
+            let cos_a = u2.x.powf(1.0 / (self.exponent + 1.0));
+            let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
+            let phi = 2.0 * PI * u2.y;
+            let lobe = Frame::from_normal(vec3(-wi.x, -wi.y, wi.z));
+            lobe.to_world(vec3(sin_a * phi.cos(), sin_a * phi.sin(), cos_a))
+        } else {
+            cosine_hemisphere(u2)
+        };
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let pdf = self.pdf(ctx, wi, wo);
+        if !(pdf > 0.0) {
+            return None;
+        }
+        Some(BsdfSample { wo, weight: self.eval(ctx, wi, wo) / pdf, pdf, delta: false })
+    }
+}

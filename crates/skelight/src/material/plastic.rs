@@ -1,0 +1,231 @@
+//! Plastic: a dielectric coating over a diffuse base, smooth or rough (Mitsuba's models,
+//! including the internal-scattering term and its `nonlinear` option).
+
+use super::fresnel::{fresnel_dielectric, fresnel_diffuse_reflectance};
+use super::microfacet::Microfacet;
+use super::{BsdfCtx, BsdfModel, BsdfSample};
+use crate::color::Rgb;
+use crate::math::{vec3, Vec2, Vec3, INV_PI};
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf, Rng};
+use crate::texture::Texture;
+
+/// The diffuse base seen through the interface, common to both plastics.
+#[derive(Clone, Debug)]
+struct DiffuseBase {
+    diffuse: Texture,
+    nonlinear: bool,
+    /// Diffuse reflectance of the interface seen from inside.
+    internal_reflectance: f32,
+    inv_eta2: f32,
+}
+
+impl DiffuseBase {
+    /// Diffuse term × cosθo for interface transmittances `t_i`, `t_o`.
+    fn eval(&self, uv: Vec2, wo: Vec3, t_i: f32, t_o: f32) -> Rgb {
+        let d = self.diffuse.eval(uv);
+        let d = if self.nonlinear {
+            d.map(|v| v / (1.0 - v * self.internal_reflectance))
+        } else {
+            d / (1.0 - self.internal_reflectance)
+        };
+        d * (INV_PI * self.inv_eta2 * wo.z * t_i * t_o)
+    }
+}
+
+/// Fraction of samples sent to the specular lobe, before Fresnel: mean(spec)/(mean(spec)+mean(diffuse)).
+fn specular_weight(diffuse: &Texture, specular: &Texture) -> f32 {
+    let d = diffuse.mean().mean();
+    let s = specular.mean().mean();
+    if d + s > 0.0 {
+        s / (d + s)
+    } else {
+        0.5
+    }
+}
+
+/// Probability of choosing the specular lobe when the interface reflects `f` of the light.
+fn specular_probability(f: f32, weight: f32) -> f32 {
+    let ps = f * weight;
+    let pd = (1.0 - f) * (1.0 - weight);
+    if ps + pd > 0.0 {
+        ps / (ps + pd)
+    } else {
+        0.0
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Plastic {
+    base: DiffuseBase,
+    eta: f32,
+    specular_reflectance: Texture,
+    specular_weight: f32,
+}
+
+impl Plastic {
+    pub fn new(diffuse: Texture, specular: Texture, eta: f32, nonlinear: bool) -> Plastic {
+        Plastic {
+            specular_weight: specular_weight(&diffuse, &specular),
+            base: DiffuseBase {
+                diffuse,
+                nonlinear,
+                internal_reflectance: fresnel_diffuse_reflectance(1.0 / eta),
+                inv_eta2: 1.0 / (eta * eta),
+            },
+            eta,
+            specular_reflectance: specular,
+        }
+    }
+}
+
+impl BsdfModel for Plastic {
+    fn eval(&self, ctx: &BsdfCtx, wi: Vec3, wo: Vec3) -> Rgb {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return Rgb::BLACK;
+        }
+        let t_i = 1.0 - fresnel_dielectric(wi.z, self.eta);
+        let t_o = 1.0 - fresnel_dielectric(wo.z, self.eta);
+        self.base.eval(ctx.uv, wo, t_i, t_o)
+    }
+    fn pdf(&self, _: &BsdfCtx, wi: Vec3, wo: Vec3) -> f32 {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return 0.0;
+        }
+        let ps = specular_probability(fresnel_dielectric(wi.z, self.eta), self.specular_weight);
+        (1.0 - ps) * cosine_hemisphere_pdf(wo.z)
+    }
+    fn sample(&self, ctx: &BsdfCtx, wi: Vec3, u: f32, u2: Vec2) -> Option<BsdfSample> {
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let f = fresnel_dielectric(wi.z, self.eta);
+        let ps = specular_probability(f, self.specular_weight);
+        if u < ps {
+            let weight = self.specular_reflectance.eval(ctx.uv) * (f / ps);
+            return Some(BsdfSample { wo: vec3(-wi.x, -wi.y, wi.z), weight, pdf: ps, delta: true });
+        }
+        let wo = cosine_hemisphere(u2);
+        let pdf = (1.0 - ps) * cosine_hemisphere_pdf(wo.z);
+        if pdf <= 0.0 {
+            return None;
+        }
+        Some(BsdfSample { wo, weight: self.eval(ctx, wi, wo) / pdf, pdf, delta: false })
+    }
+}
+
+const TABLE_SIZE: usize = 64;
+
+#[derive(Clone, Debug)]
+pub struct RoughPlastic {
+    base: DiffuseBase,
+    distribution: Microfacet,
+    eta: f32,
+    specular_reflectance: Texture,
+    specular_weight: f32,
+    /// 1 − albedo of the rough specular lobe, tabulated over cosθ in [0, 1].
+    external_transmittance: Vec<f32>,
+}
+
+/// Albedo of the rough dielectric reflection lobe for incidence cosine `mu`, by
+/// stratified importance sampling with a fixed seed (deterministic tables).
+fn rough_reflection_albedo(mf: &Microfacet, eta: f32, mu: f32) -> f32 {
+    let mu = mu.clamp(1e-4, 1.0);
+    let wi = vec3((1.0 - mu * mu).sqrt(), 0.0, mu);
+    let n = 48;
+    let mut rng = Rng::new(0x5EED, (mu * 1e6) as u64, (eta * 1e6) as u64);
+    let mut sum = 0.0f64;
+    for i in 0..n {
+        for j in 0..n {
+            let u = Vec2 { x: (i as f32 + rng.next_f32()) / n as f32, y: (j as f32 + rng.next_f32()) / n as f32 };
+            let (m, pdf_m) = mf.sample(wi, u);
+            let wo = wi.reflect(m);
+            if wo.z <= 0.0 || pdf_m <= 0.0 {
+                continue;
+            }
+            let pdf = pdf_m / (4.0 * wo.dot(m).abs());
+            let f = fresnel_dielectric(wi.dot(m), eta) * mf.d(m) * mf.g(wi, wo, m) / (4.0 * wi.z);
+            sum += (f / pdf) as f64;
+        }
+    }
+    (sum / (n * n) as f64).clamp(0.0, 1.0) as f32
+}
+
+impl RoughPlastic {
+    pub fn new(distribution: Microfacet, diffuse: Texture, specular: Texture, eta: f32, nonlinear: bool) -> RoughPlastic {
+        let table = |eta: f32| -> Vec<f32> {
+            (0..TABLE_SIZE)
+                .map(|i| 1.0 - rough_reflection_albedo(&distribution, eta, i as f32 / (TABLE_SIZE - 1) as f32))
+                .collect()
+        };
+        let external_transmittance = table(eta);
+        let internal_transmittance = table(1.0 / eta);
+        // Diffuse reflectance of the interface from inside: 1 − 2∫T(μ)μdμ (midpoint rule).
+        let mut acc = 0.0;
+        let n = 256;
+        for i in 0..n {
+            let mu = (i as f32 + 0.5) / n as f32;
+            acc += lerp_table(&internal_transmittance, mu) * mu;
+        }
+        let internal_reflectance = (1.0 - 2.0 * acc / n as f32).clamp(0.0, 1.0);
+        RoughPlastic {
+            specular_weight: specular_weight(&diffuse, &specular),
+            base: DiffuseBase { diffuse, nonlinear, internal_reflectance, inv_eta2: 1.0 / (eta * eta) },
+            distribution,
+            eta,
+            specular_reflectance: specular,
+            external_transmittance,
+        }
+    }
+    fn transmittance(&self, mu: f32) -> f32 {
+        lerp_table(&self.external_transmittance, mu)
+    }
+}
+
+fn lerp_table(t: &[f32], mu: f32) -> f32 {
+    let x = mu.clamp(0.0, 1.0) * (t.len() - 1) as f32;
+    let i = (x as usize).min(t.len() - 2);
+    let f = x - i as f32;
+    t[i] * (1.0 - f) + t[i + 1] * f
+}
+
+impl BsdfModel for RoughPlastic {
+    fn eval(&self, ctx: &BsdfCtx, wi: Vec3, wo: Vec3) -> Rgb {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return Rgb::BLACK;
+        }
+        let m = (wi + wo).normalize();
+        let mf = &self.distribution;
+        let spec = fresnel_dielectric(wi.dot(m), self.eta) * mf.d(m) * mf.g(wi, wo, m) / (4.0 * wi.z);
+        let diffuse = self.base.eval(ctx.uv, wo, self.transmittance(wi.z), self.transmittance(wo.z));
+        self.specular_reflectance.eval(ctx.uv) * spec + diffuse
+    }
+    fn pdf(&self, _: &BsdfCtx, wi: Vec3, wo: Vec3) -> f32 {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return 0.0;
+        }
+        let ps = specular_probability(1.0 - self.transmittance(wi.z), self.specular_weight);
+        let m = (wi + wo).normalize();
+        let spec = self.distribution.pdf(wi, m) / (4.0 * wo.dot(m).abs());
+        ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wo.z)
+    }
+    fn sample(&self, ctx: &BsdfCtx, wi: Vec3, u: f32, u2: Vec2) -> Option<BsdfSample> {
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let ps = specular_probability(1.0 - self.transmittance(wi.z), self.specular_weight);
+        let wo = if u < ps {
+            let (m, _) = self.distribution.sample(wi, u2);
+            wi.reflect(m)
+        } else {
+            cosine_hemisphere(u2)
+        };
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let pdf = self.pdf(ctx, wi, wo);
+        if !(pdf > 0.0) {
+            return None;
+        }
+        Some(BsdfSample { wo, weight: self.eval(ctx, wi, wo) / pdf, pdf, delta: false })
+    }
+}
