@@ -4,10 +4,16 @@
 //! Data flow: scene files → [`scene`] (+ [`geometry`] BVH) → estimators in [`integrator`]
 //! → [`film`] → [`eval`].
 
+pub mod camera;
 pub mod color;
+pub mod eval;
+pub mod film;
 pub mod geometry;
 pub mod imageio;
+pub mod integrator;
+pub mod light;
 pub mod material;
 pub mod math;
 pub mod sampling;
+pub mod scene;
 pub mod texture;

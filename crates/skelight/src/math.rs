@@ -156,6 +156,12 @@ impl Index<usize> for Vec3 {
     }
 }
 
+impl From<[f32; 3]> for Vec3 {
+    fn from(a: [f32; 3]) -> Vec3 {
+        vec3(a[0], a[1], a[2])
+    }
+}
+
 /// A 2-vector: texture coordinates and sample pairs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Vec2 {

@@ -1,0 +1,229 @@
+//! Perspective and thin-lens cameras with Mitsuba's conventions (local +z forward, +x left,
+//! film x to the right and y down), plus the importance function W_e that light tracing
+//! and bidirectional methods connect to.
+
+use crate::geometry::Ray;
+use crate::math::{vec2, vec3, Transform, Vec2, Vec3};
+use crate::sampling::concentric_disk;
+
+/// Which field of view the `fov` value measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FovAxis {
+    X,
+    Y,
+    Diagonal,
+    Smaller,
+    Larger,
+}
+
+#[derive(Clone, Debug)]
+pub struct Camera {
+    pub to_world: Transform,
+    pub width: usize,
+    pub height: usize,
+    /// tan of the half field of view along film x and y.
+    pub tan_half: Vec2,
+    pub aperture_radius: f32,
+    pub focus_distance: f32,
+    pub near_clip: f32,
+    pub position: Vec3,
+    pub forward: Vec3,
+    fov_deg: f32,
+    fov_axis: FovAxis,
+}
+
+/// A camera connection from a scene point (light tracing, t = 1 strategies).
+#[derive(Clone, Copy, Debug)]
+pub struct CameraSample {
+    /// Continuous film position in pixels.
+    pub raster: Vec2,
+    /// Point on the lens and the unit direction from the scene point to it.
+    pub lens_point: Vec3,
+    pub wi: Vec3,
+    pub dist: f32,
+    /// Importance W_e along the connection.
+    pub importance: f32,
+    /// Solid-angle density at the scene point of having sampled this lens point.
+    pub pdf: f32,
+}
+
+impl Camera {
+    pub fn new(
+        to_world: Transform,
+        width: usize,
+        height: usize,
+        fov_deg: f32,
+        axis: FovAxis,
+        aperture_radius: f32,
+        focus_distance: f32,
+        near_clip: f32,
+    ) -> Camera {
+        let aspect = width as f32 / height as f32;
+        let t = (fov_deg.to_radians() * 0.5).tan();
+        let axis = match axis {
+            FovAxis::Smaller => if width <= height { FovAxis::X } else { FovAxis::Y },
+            FovAxis::Larger => if width >= height { FovAxis::X } else { FovAxis::Y },
+            a => a,
+        };
+        let tan_half = match axis {
+            FovAxis::X => vec2(t, t / aspect),
+            FovAxis::Y => vec2(t * aspect, t),
+            _ => {
+                let d = (aspect * aspect + 1.0).sqrt();
+                vec2(t * aspect / d, t / d)
+            }
+        };
+        let position = to_world.point(Vec3::ZERO);
+        let forward = to_world.vector(vec3(0.0, 0.0, 1.0)).normalize();
+        Camera { to_world, width, height, tan_half, aperture_radius, focus_distance, near_clip, position, forward, fov_deg, fov_axis: axis }
+    }
+
+    /// The same camera for another image size (same field of view along its axis).
+    pub fn with_resolution(&self, width: usize, height: usize) -> Camera {
+        Camera::new(self.to_world, width, height, self.fov_deg, self.fov_axis, self.aperture_radius, self.focus_distance, self.near_clip)
+    }
+
+    fn film_area(&self) -> f32 {
+        4.0 * self.tan_half.x * self.tan_half.y
+    }
+
+    fn lens_area(&self) -> f32 {
+        if self.aperture_radius > 0.0 {
+            std::f32::consts::PI * self.aperture_radius * self.aperture_radius
+        } else {
+            1.0
+        }
+    }
+
+    /// Local direction through film position `raster` (pixels) from the lens centre.
+    fn local_direction(&self, raster: Vec2) -> Vec3 {
+        let sx = raster.x / self.width as f32;
+        let sy = raster.y / self.height as f32;
+        vec3((1.0 - 2.0 * sx) * self.tan_half.x, (1.0 - 2.0 * sy) * self.tan_half.y, 1.0)
+    }
+
+    /// Primary ray through film position `raster` (pixels), lens sample `u_lens`.
+    pub fn generate_ray(&self, raster: Vec2, u_lens: Vec2) -> Ray {
+        let d = self.local_direction(raster);
+        let (o, d) = if self.aperture_radius > 0.0 {
+            let l = concentric_disk(u_lens) * self.aperture_radius;
+            let lens = vec3(l.x, l.y, 0.0);
+            let focus = d * self.focus_distance;
+            (lens, (focus - lens).normalize())
+        } else {
+            (Vec3::ZERO, d.normalize())
+        };
+        let o = o + d * (self.near_clip / d.z);
+        Ray::new(self.to_world.point(o), self.to_world.vector(d).normalize())
+    }
+
+    /// Film position (pixels) that a world direction leaving lens point `lens_world` maps to.
+    pub fn raster_of(&self, lens_world: Vec3, dir_world: Vec3) -> Option<Vec2> {
+        let inv = self.to_world.inverse();
+        let o = inv.point(lens_world);
+        let d = inv.vector(dir_world);
+        if d.z <= 0.0 {
+            return None;
+        }
+        // Point on the plane of focus (or the z=1 plane for a pinhole), seen from the centre.
+        let depth = if self.aperture_radius > 0.0 { self.focus_distance } else { 1.0 };
+        let p = o + d * ((depth - o.z) / d.z);
+        let (x, y) = (p.x / p.z, p.y / p.z);
+        let sx = (1.0 - x / self.tan_half.x) * 0.5;
+        let sy = (1.0 - y / self.tan_half.y) * 0.5;
+        if !(0.0..1.0).contains(&sx) || !(0.0..1.0).contains(&sy) {
+            return None;
+        }
+        Some(vec2(sx * self.width as f32, sy * self.height as f32))
+    }
+
+    /// Importance W_e for a ray leaving the lens in world direction `dir`.
+    pub fn importance(&self, dir: Vec3) -> f32 {
+        let cos = dir.dot(self.forward);
+        if cos <= 0.0 {
+            return 0.0;
+        }
+        1.0 / (self.film_area() * self.lens_area() * cos.powi(4))
+    }
+
+    /// Densities of `generate_ray`: (per unit lens area, per solid angle).
+    pub fn pdf_we(&self, dir: Vec3) -> (f32, f32) {
+        let cos = dir.dot(self.forward);
+        if cos <= 0.0 {
+            return (0.0, 0.0);
+        }
+        (1.0 / self.lens_area(), 1.0 / (self.film_area() * cos.powi(3)))
+    }
+
+    /// Samples a lens point as seen from scene point `p` (for connections to the camera).
+    pub fn sample_wi(&self, p: Vec3, u: Vec2) -> Option<CameraSample> {
+        let lens_local = if self.aperture_radius > 0.0 {
+            let l = concentric_disk(u) * self.aperture_radius;
+            vec3(l.x, l.y, 0.0)
+        } else {
+            Vec3::ZERO
+        };
+        let lens_point = self.to_world.point(lens_local);
+        let d = lens_point - p;
+        let dist2 = d.length_squared();
+        if !(dist2 > 0.0) {
+            return None;
+        }
+        let dist = dist2.sqrt();
+        let wi = d / dist;
+        let raster = self.raster_of(lens_point, -wi)?;
+        let cos_lens = (-wi).dot(self.forward);
+        if cos_lens <= 0.0 {
+            return None;
+        }
+        let pdf = dist2 / (cos_lens * self.lens_area());
+        Some(CameraSample { raster, lens_point, wi, dist, importance: self.importance(-wi), pdf })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera(aperture: f32) -> Camera {
+        let t = Transform::look_at([0.0, 0.0, 3.9], [0.0; 3], [0.0, 1.0, 0.0]).unwrap();
+        Camera::new(t, 64, 32, 40.0, FovAxis::X, aperture, 3.6, 0.0)
+    }
+
+    #[test]
+    fn rays_map_back_to_their_film_position() {
+        for aperture in [0.0, 0.1] {
+            let cam = camera(aperture);
+            for (x, y) in [(0.5, 0.5), (10.25, 20.75), (63.5, 31.5)] {
+                let ray = cam.generate_ray(vec2(x, y), vec2(0.3, 0.8));
+                let r = cam.raster_of(ray.o, ray.d).unwrap();
+                assert!((r.x - x).abs() < 1e-3 && (r.y - y).abs() < 1e-3, "{r:?} vs {x},{y}");
+            }
+        }
+        // Mitsuba's orientation: film left is the camera's left (world -x here), top is up.
+        let cam = camera(0.0);
+        let left = cam.generate_ray(vec2(0.0, 16.0), vec2(0.5, 0.5));
+        let top = cam.generate_ray(vec2(32.0, 0.0), vec2(0.5, 0.5));
+        assert!(left.d.x < 0.0 && top.d.y > 0.0);
+    }
+
+    /// ∫ W_e cosθ dω over the film's directions is 1/lens_area (importance is normalised).
+    #[test]
+    fn importance_integrates_to_one_over_the_film() {
+        let cam = camera(0.0);
+        let n = 200;
+        let mut sum = 0.0f64;
+        for i in 0..n {
+            for j in 0..n {
+                let raster = vec2((i as f32 + 0.5) / n as f32 * 64.0, (j as f32 + 0.5) / n as f32 * 32.0);
+                let d = cam.local_direction(raster);
+                let dir = cam.to_world.vector(d).normalize();
+                let cos = dir.dot(cam.forward);
+                // dω = dA_film cos³θ on the z=1 plane.
+                let d_area = cam.film_area() / (n * n) as f32;
+                sum += (cam.importance(dir) * cos * d_area * cos.powi(3)) as f64;
+            }
+        }
+        assert!((sum - 1.0).abs() < 1e-3, "{sum}");
+    }
+}

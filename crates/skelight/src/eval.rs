@@ -1,0 +1,155 @@
+//! Image error metrics (per channel with the seeds' max over RGB, and on luminance) and the
+//! block-mean statistic used to test estimators against references.
+
+use crate::color::Rgb;
+use crate::imageio::Image;
+
+/// Errors of an image against a reference.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Metrics {
+    /// Mean absolute error, max over RGB channels.
+    pub mae: f64,
+    /// Root mean squared error, max over RGB.
+    pub rmse: f64,
+    /// Mean of (x−r)²/(r²+ε), max over RGB.
+    pub relmse: f64,
+    /// RMSE divided by the reference's mean, max over RGB.
+    pub nrmse: f64,
+    /// The same four on luminance.
+    pub mae_lum: f64,
+    pub rmse_lum: f64,
+    pub relmse_lum: f64,
+    pub nrmse_lum: f64,
+}
+
+/// ε in relMSE's denominator, as in the literature (avoids division by black pixels).
+pub const RELMSE_EPSILON: f64 = 1e-2;
+
+#[derive(Debug, thiserror::Error)]
+#[error("images differ in size: {0}×{1} vs {2}×{3}")]
+pub struct SizeMismatch(usize, usize, usize, usize);
+
+fn channel_stats(img: &Image, reference: &Image, f: impl Fn(Rgb) -> [f64; 4]) -> [[f64; 4]; 4] {
+    // For each of up to 4 channels: sum |d|, sum d², sum d²/(r²+ε), sum r.
+    let mut acc = [[0.0f64; 4]; 4];
+    for (a, r) in img.pixels.iter().zip(&reference.pixels) {
+        let (va, vr) = (f(*a), f(*r));
+        for c in 0..4 {
+            let d = va[c] - vr[c];
+            acc[c][0] += d.abs();
+            acc[c][1] += d * d;
+            acc[c][2] += d * d / (vr[c] * vr[c] + RELMSE_EPSILON);
+            acc[c][3] += vr[c];
+        }
+    }
+    acc
+}
+
+pub fn metrics(img: &Image, reference: &Image) -> Result<Metrics, SizeMismatch> {
+    if img.width != reference.width || img.height != reference.height {
+        return Err(SizeMismatch(img.width, img.height, reference.width, reference.height));
+    }
+    let n = img.pixels.len().max(1) as f64;
+    let acc = channel_stats(img, reference, |p| [p.r as f64, p.g as f64, p.b as f64, p.luminance() as f64]);
+    let per = |c: usize| {
+        let mae = acc[c][0] / n;
+        let rmse = (acc[c][1] / n).sqrt();
+        let relmse = acc[c][2] / n;
+        let mean = acc[c][3] / n;
+        let nrmse = if mean > 0.0 { rmse / mean } else { f64::INFINITY };
+        [mae, rmse, relmse, nrmse]
+    };
+    let rgb = [per(0), per(1), per(2)];
+    let max = |k: usize| rgb.iter().map(|m| m[k]).fold(0.0f64, f64::max);
+    let lum = per(3);
+    Ok(Metrics {
+        mae: max(0),
+        rmse: max(1),
+        relmse: max(2),
+        nrmse: max(3),
+        mae_lum: lum[0],
+        rmse_lum: lum[1],
+        relmse_lum: lum[2],
+        nrmse_lum: lum[3],
+    })
+}
+
+/// Means of `block`×`block` pixel blocks, per channel (row-major blocks).
+pub fn block_means(img: &Image, block: usize) -> Vec<[f64; 3]> {
+    let (bw, bh) = (img.width / block, img.height / block);
+    let mut out = vec![[0.0f64; 3]; bw * bh];
+    for by in 0..bh {
+        for bx in 0..bw {
+            let mut s = [0.0f64; 3];
+            for y in by * block..(by + 1) * block {
+                for x in bx * block..(bx + 1) * block {
+                    let p = img.get(x, y);
+                    s[0] += p.r as f64;
+                    s[1] += p.g as f64;
+                    s[2] += p.b as f64;
+                }
+            }
+            out[by * bw + bx] = s.map(|v| v / (block * block) as f64);
+        }
+    }
+    out
+}
+
+/// The conformance statistic: with two independent renders r1, r2 and a reference,
+/// T = mean_b (avg_b − ref_b)² / mean_b ((r1_b − r2_b)²/4) over block means and channels.
+/// For an unbiased estimator T ≈ 1 at any sample count; bias inflates it.
+pub fn block_t_statistic(r1: &Image, r2: &Image, reference: &Image, block: usize) -> f64 {
+    let (a, b, r) = (block_means(r1, block), block_means(r2, block), block_means(reference, block));
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for i in 0..r.len() {
+        for c in 0..3 {
+            let avg = 0.5 * (a[i][c] + b[i][c]);
+            num += (avg - r[i][c]).powi(2);
+            den += (a[i][c] - b[i][c]).powi(2) / 4.0;
+        }
+    }
+    if den > 0.0 {
+        num / den
+    } else if num > 0.0 {
+        f64::INFINITY
+    } else {
+        1.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::rgb;
+
+    #[test]
+    fn metrics_match_hand_computed_values() {
+        let reference = Image { width: 2, height: 1, pixels: vec![rgb(1.0, 2.0, 0.0), rgb(3.0, 2.0, 0.0)] };
+        let img = Image { width: 2, height: 1, pixels: vec![rgb(2.0, 2.0, 0.0), rgb(1.0, 2.0, 0.0)] };
+        let m = metrics(&img, &reference).unwrap();
+        // Red errors: +1 and −2 → MAE 1.5, RMSE sqrt(2.5); other channels exact.
+        assert!((m.mae - 1.5).abs() < 1e-12);
+        assert!((m.rmse - 2.5f64.sqrt()).abs() < 1e-12);
+        // relMSE red: (1/(1+0.01) + 4/(9+0.01)) / 2.
+        assert!((m.relmse - (1.0 / 1.01 + 4.0 / 9.01) / 2.0).abs() < 1e-12);
+        // NRMSE red: sqrt(2.5) / mean(1, 3).
+        assert!((m.nrmse - 2.5f64.sqrt() / 2.0).abs() < 1e-12);
+        assert!(metrics(&img, &Image::new(1, 1)).is_err());
+    }
+
+    #[test]
+    fn t_statistic_detects_bias() {
+        let mut rng = crate::sampling::Rng::new(1, 2, 3);
+        let reference = Image { width: 32, height: 32, pixels: vec![Rgb::splat(1.0); 1024] };
+        let noisy = |rng: &mut crate::sampling::Rng, bias: f32| Image {
+            width: 32,
+            height: 32,
+            pixels: (0..1024).map(|_| Rgb::splat(1.0 + bias + (rng.next_f32() - 0.5))).collect(),
+        };
+        let (a, b) = (noisy(&mut rng, 0.0), noisy(&mut rng, 0.0));
+        let t = block_t_statistic(&a, &b, &reference, 8);
+        assert!(t < 3.0, "{t}");
+        let (a, b) = (noisy(&mut rng, 0.1), noisy(&mut rng, 0.1));
+        assert!(block_t_statistic(&a, &b, &reference, 8) > 20.0);
+    }
+}

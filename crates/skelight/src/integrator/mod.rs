@@ -1,0 +1,167 @@
+//! Estimators and the progressive, multi-threaded render loop that drives them.
+//!
+//! Every sample draws its random numbers from a generator seeded by (seed, pixel, sample
+//! index), and tiles are merged in a fixed order, so a render is a pure function of the
+//! scene, the estimator, the seed and the sample count: thread count does not matter.
+
+pub mod pt;
+
+use std::time::{Duration, Instant};
+
+use crate::film::{Film, FilmTile};
+use crate::sampling::Rng;
+use crate::scene::Scene;
+
+/// An estimator of the pixel integral.
+pub trait Integrator: Sync {
+    fn name(&self) -> &'static str;
+    /// Takes one camera sample in pixel (`x`, `y`) and records it in `tile` (and any
+    /// light-path splats anywhere on the film).
+    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile);
+    /// Light paths traced per camera sample (normalises splats; 0 if none).
+    fn splats_per_sample(&self) -> u64 {
+        0
+    }
+}
+
+/// When to stop and how to run.
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    /// Samples per pixel to reach (used when `time` is `None`, or as a cap with it).
+    pub spp: Option<u32>,
+    /// Wall-clock budget.
+    pub time: Option<Duration>,
+    pub seed: u64,
+    /// Worker threads; 0 = all cores.
+    pub threads: usize,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions { spp: Some(16), time: None, seed: 0, threads: 0 }
+    }
+}
+
+/// Reported after each pass.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    pub spp_done: u32,
+    pub spp_target: Option<u32>,
+    pub elapsed: Duration,
+    pub time_budget: Option<Duration>,
+    pub samples_per_second: f64,
+}
+
+pub struct RenderResult {
+    pub film: Film,
+    pub spp: u32,
+    pub elapsed: Duration,
+}
+
+const TILE: usize = 32;
+
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("invalid render options: {0}")]
+    Options(String),
+    #[error("cannot start worker threads: {0}")]
+    Threads(String),
+}
+
+/// Renders progressively until the sample count or the time budget is reached.
+/// `progress` runs after every pass; returning `false` from it stops early.
+pub fn render(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    opts: &RenderOptions,
+    film: Option<(Film, u32)>,
+    mut progress: impl FnMut(&Progress, &Film) -> bool,
+) -> Result<RenderResult, RenderError> {
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    if opts.spp.is_none() && opts.time.is_none() {
+        return Err(RenderError::Options("give a sample count or a time budget".into()));
+    }
+    if opts.spp == Some(0) {
+        return Err(RenderError::Options("the sample count must be at least 1".into()));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads)
+        .build()
+        .map_err(|e| RenderError::Threads(e.to_string()))?;
+    let (mut film, mut done) = film.unwrap_or_else(|| (Film::new(w, h, scene.settings.filter), 0));
+    let tiles: Vec<(usize, usize, usize, usize)> = (0..h.div_ceil(TILE))
+        .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
+        .map(|(x, y)| (x, y, TILE.min(w - x), TILE.min(h - y)))
+        .collect();
+    let start = Instant::now();
+    // Aim for passes of about 2^18 samples so that progress and time checks stay frequent.
+    let mut per_pass = (262_144 / (w * h).max(1)).clamp(1, 64) as u32;
+    loop {
+        let remaining = opts.spp.map(|s| s.saturating_sub(done)).unwrap_or(u32::MAX);
+        if remaining == 0 {
+            break;
+        }
+        let elapsed = start.elapsed();
+        if let Some(budget) = opts.time {
+            if elapsed >= budget {
+                break;
+            }
+            if done > 0 {
+                // Shrink the pass so that it ends near the budget.
+                let per_spp = elapsed.as_secs_f64() / done.max(1) as f64;
+                let left = (budget - elapsed).as_secs_f64();
+                per_pass = per_pass.min(((left / per_spp.max(1e-9)) as u32).max(1));
+            }
+        }
+        let n = per_pass.min(remaining);
+        let first = done;
+        let results: Vec<FilmTile> = pool.install(|| {
+            use rayon::prelude::*;
+            tiles
+                .par_iter()
+                .map(|&(x0, y0, tw, th)| {
+                    let mut tile = FilmTile::new(x0, y0, tw, th, film.filter);
+                    for y in y0..y0 + th {
+                        for x in x0..x0 + tw {
+                            let pixel = (y * w + x) as u64;
+                            for s in first..first + n {
+                                let mut rng = Rng::new(opts.seed, pixel, s as u64);
+                                integrator.sample(scene, x, y, &mut rng, &mut tile);
+                            }
+                        }
+                    }
+                    tile
+                })
+                .collect()
+        });
+        for tile in &results {
+            film.merge_tile(tile);
+        }
+        film.splat_paths += integrator.splats_per_sample() * n as u64 * (w * h) as u64;
+        done += n;
+        let elapsed = start.elapsed();
+        let p = Progress {
+            spp_done: done,
+            spp_target: opts.spp,
+            elapsed,
+            time_budget: opts.time,
+            samples_per_second: (done as f64 * (w * h) as f64) / elapsed.as_secs_f64().max(1e-9),
+        };
+        if !progress(&p, &film) {
+            break;
+        }
+        per_pass = (per_pass * 2).min(64);
+    }
+    Ok(RenderResult { film, spp: done, elapsed: start.elapsed() })
+}
+
+/// Builds an estimator by its command-line name.
+pub fn by_name(name: &str) -> Option<Box<dyn Integrator>> {
+    match name {
+        "pt" | "path" => Some(Box::new(pt::PathTracer::default())),
+        _ => None,
+    }
+}
+
+/// Names accepted by [`by_name`].
+pub const INTEGRATORS: &[&str] = &["pt"];

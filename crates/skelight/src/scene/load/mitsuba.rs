@@ -1,0 +1,896 @@
+//! Mitsuba scene files, versions 0.4 to 3.x: camelCase or snake_case names, `<default>` and
+//! `$name` substitution, `<ref>`, `<include>` (confined to the scene folder), transform
+//! chains, shapes, BSDFs, textures, emitters, sensor, film and integrator settings.
+//! Unsupported plugins produce a warning and a visible fallback (magenta), never silence.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use roxmltree::{Document, Node};
+
+use super::{confined_path, LoadError};
+use crate::camera::{Camera, FovAxis};
+use crate::color::{rgb, srgb_to_linear, Rgb};
+use crate::film::Filter;
+use crate::imageio::Image;
+use crate::light::{EnvMap, Light};
+use crate::material::fresnel::{named_conductor, named_ior};
+use crate::material::microfacet::{Microfacet, MicrofacetType};
+use crate::material::*;
+use crate::math::{vec3, Frame, Transform, Vec3};
+use crate::scene::shapes::{self, TriangleData};
+use crate::scene::{Mesh, RenderSettings, SceneDescription};
+use crate::texture::{Bitmap, TexFilter, Texture, UvTransform};
+
+/// `fooBar` and `foo_bar` name the same parameter; so do `intIOR` and `int_ior`.
+pub fn normalize_name(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 4);
+    let chars: Vec<char> = s.chars().collect();
+    for (i, &c) in chars.iter().enumerate() {
+        if c.is_ascii_uppercase() && i > 0 && chars[i - 1].is_ascii_lowercase() {
+            out.push('_');
+        }
+        out.push(c.to_ascii_lowercase());
+    }
+    out
+}
+
+/// A BSDF as a shape uses it: the material and the mesh-level opacity mask, if any.
+#[derive(Clone)]
+struct MaterialRef {
+    index: u32,
+    alpha: Option<Texture>,
+}
+
+struct Parsed {
+    bsdf: Bsdf,
+    perturbation: Option<Perturbation>,
+    alpha: Option<Texture>,
+}
+
+pub struct Loader {
+    /// Folder that every referenced file must stay inside.
+    root: PathBuf,
+    defines: HashMap<String, String>,
+    overrides: HashMap<String, String>,
+    materials: HashMap<String, MaterialRef>,
+    textures: HashMap<String, Texture>,
+    bitmaps: std::cell::RefCell<HashMap<(PathBuf, bool, bool), Arc<Bitmap>>>,
+    default_material: Option<u32>,
+    desc: SceneDescription,
+    /// File being parsed (for error messages) and its text (for line numbers).
+    file: PathBuf,
+    fov: (f32, FovAxis),
+    version_major: u32,
+}
+
+type R<T> = Result<T, LoadError>;
+
+impl Loader {
+    pub fn new(root: &Path, overrides: &[(String, String)]) -> Loader {
+        Loader {
+            root: root.to_path_buf(),
+            defines: HashMap::new(),
+            overrides: overrides.iter().cloned().collect(),
+            materials: HashMap::new(),
+            textures: HashMap::new(),
+            bitmaps: Default::default(),
+            default_material: None,
+            desc: SceneDescription::default(),
+            file: PathBuf::new(),
+            fov: (45.0, FovAxis::X),
+            version_major: 3,
+        }
+    }
+
+    pub fn load(mut self, path: &Path) -> R<SceneDescription> {
+        self.load_file(path, true)?;
+        if self.desc.camera.is_none() {
+            self.warn(format!("{}: no sensor; using a default camera looking at the scene", path.display()));
+        }
+        Ok(self.desc)
+    }
+
+    fn warn(&mut self, msg: String) {
+        self.desc.warnings.push(msg);
+    }
+
+    fn err(&self, doc_node: Node, msg: impl Into<String>) -> LoadError {
+        let pos = doc_node.document().text_pos_at(doc_node.range().start);
+        LoadError::at(&self.file, pos.row as usize, msg.into())
+    }
+
+    fn load_file(&mut self, path: &Path, top: bool) -> R<()> {
+        let text = super::read_text(path)?;
+        let doc = Document::parse(&text).map_err(|e| {
+            let p = e.pos();
+            LoadError::at(path, p.row as usize, format!("malformed XML: {e}"))
+        })?;
+        let saved = std::mem::replace(&mut self.file, path.to_path_buf());
+        let root = doc.root_element();
+        if root.tag_name().name() != "scene" {
+            return Err(self.err(root, format!("expected <scene> as the root element, found <{}>", root.tag_name().name())));
+        }
+        if top {
+            if let Some(v) = root.attribute("version") {
+                self.version_major = v.split('.').next().and_then(|s| s.parse().ok()).unwrap_or(3);
+            }
+        }
+        // Defaults first, wherever they appear: they parameterise everything else.
+        for n in root.children().filter(|n| n.is_element() && n.tag_name().name() == "default") {
+            let name = n.attribute("name").ok_or_else(|| self.err(n, "<default> needs a name"))?;
+            let value = n.attribute("value").ok_or_else(|| self.err(n, "<default> needs a value"))?;
+            self.defines.entry(name.to_string()).or_insert_with(|| value.to_string());
+        }
+        for n in root.children().filter(|n| n.is_element()) {
+            self.scene_child(n)?;
+        }
+        self.file = saved;
+        Ok(())
+    }
+
+    fn scene_child(&mut self, n: Node) -> R<()> {
+        match n.tag_name().name() {
+            "default" => Ok(()),
+            "include" => {
+                let f = self.attr(n, "filename")?.ok_or_else(|| self.err(n, "<include> needs a filename"))?;
+                let p = self.resolve(n, &f)?;
+                self.load_file(&p, false)
+            }
+            "integrator" => self.integrator(n),
+            "sensor" | "camera" => self.sensor(n),
+            "shape" => self.shape(n),
+            "bsdf" => {
+                let id = self.attr(n, "id")?.ok_or_else(|| self.err(n, "a top-level <bsdf> needs an id"))?;
+                let m = self.material(n)?;
+                self.materials.insert(id, m);
+                Ok(())
+            }
+            "texture" => {
+                let id = self.attr(n, "id")?.ok_or_else(|| self.err(n, "a top-level <texture> needs an id"))?;
+                let t = self.texture_node(n)?;
+                self.textures.insert(id, t);
+                Ok(())
+            }
+            "emitter" => self.emitter(n),
+            other => {
+                let pos = n.document().text_pos_at(n.range().start);
+                self.warn(format!("{}:{}: <{other}> is not supported; ignored", self.file.display(), pos.row));
+                Ok(())
+            }
+        }
+    }
+
+    // ----- attribute and property access -------------------------------------------------
+
+    /// Attribute value with `$name` substitution.
+    fn attr(&self, n: Node, key: &str) -> R<Option<String>> {
+        let Some(raw) = n.attribute(key) else { return Ok(None) };
+        if !raw.contains('$') {
+            return Ok(Some(raw.to_string()));
+        }
+        let mut out = String::new();
+        let mut rest = raw;
+        while let Some(i) = rest.find('$') {
+            out.push_str(&rest[..i]);
+            let tail = &rest[i + 1..];
+            let end = tail.find(|c: char| !(c.is_alphanumeric() || c == '_')).unwrap_or(tail.len());
+            let name = &tail[..end];
+            let value = self.overrides.get(name).or_else(|| self.defines.get(name)).ok_or_else(|| self.err(n, format!("undefined parameter ${name} (add <default name=\"{name}\" …/> or -D {name}=…)")))?;
+            out.push_str(value);
+            rest = &tail[end..];
+        }
+        out.push_str(rest);
+        Ok(Some(out))
+    }
+
+    /// The child element carrying parameter `name`.
+    fn prop<'a, 'i>(&self, n: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
+        let want = normalize_name(name);
+        n.children().find(|c| c.is_element() && c.attribute("name").map(normalize_name).as_deref() == Some(want.as_str()))
+    }
+
+    fn numbers(&self, n: Node, s: &str) -> R<Vec<f32>> {
+        s.split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(|t| t.parse::<f32>().map_err(|_| self.err(n, format!("'{t}' is not a number"))))
+            .collect()
+    }
+
+    fn float(&self, n: Node, name: &str, default: f32) -> R<f32> {
+        let Some(p) = self.prop(n, name) else { return Ok(default) };
+        let v = self.attr(p, "value")?.ok_or_else(|| self.err(p, format!("'{name}' needs a value")))?;
+        // Mitsuba accepts names of materials for indices of refraction.
+        if let Some(ior) = named_ior(&v) {
+            return Ok(ior);
+        }
+        let x: f32 = v.trim().parse().map_err(|_| self.err(p, format!("'{name}': '{v}' is not a number")))?;
+        if !x.is_finite() {
+            return Err(self.err(p, format!("'{name}' is not finite")));
+        }
+        Ok(x)
+    }
+
+    fn int(&self, n: Node, name: &str, default: i64) -> R<i64> {
+        let Some(p) = self.prop(n, name) else { return Ok(default) };
+        let v = self.attr(p, "value")?.ok_or_else(|| self.err(p, format!("'{name}' needs a value")))?;
+        v.trim().parse().map_err(|_| self.err(p, format!("'{name}': '{v}' is not an integer")))
+    }
+
+    fn boolean(&self, n: Node, name: &str, default: bool) -> R<bool> {
+        let Some(p) = self.prop(n, name) else { return Ok(default) };
+        match self.attr(p, "value")?.as_deref().map(str::trim) {
+            Some("true") | Some("1") => Ok(true),
+            Some("false") | Some("0") => Ok(false),
+            other => Err(self.err(p, format!("'{name}': {other:?} is not a boolean"))),
+        }
+    }
+
+    fn string(&self, n: Node, name: &str) -> R<Option<String>> {
+        match self.prop(n, name) {
+            Some(p) => self.attr(p, "value"),
+            None => Ok(None),
+        }
+    }
+
+    /// A colour from <rgb>, <srgb>, <spectrum> or <float>.
+    fn color_of(&self, p: Node) -> R<Rgb> {
+        let tag = p.tag_name().name();
+        let v = self.attr(p, "value")?.ok_or_else(|| self.err(p, "colour needs a value"))?;
+        if tag == "spectrum" && v.contains(':') {
+            // Sampled spectrum "λ:v, …": its mean is the grey it looks like.
+            let vals: Vec<f32> = v.split(',').filter_map(|e| e.split(':').nth(1)).filter_map(|x| x.trim().parse().ok()).collect();
+            if vals.is_empty() {
+                return Err(self.err(p, "empty spectrum"));
+            }
+            return Ok(Rgb::splat(vals.iter().sum::<f32>() / vals.len() as f32));
+        }
+        let xs = self.numbers(p, &v)?;
+        let c = match xs.as_slice() {
+            [a] => Rgb::splat(*a),
+            [r, g, b] => rgb(*r, *g, *b),
+            _ => return Err(self.err(p, format!("expected 1 or 3 values, found {}", xs.len()))),
+        };
+        if !c.is_finite() {
+            return Err(self.err(p, "colour is not finite"));
+        }
+        Ok(if tag == "srgb" { c.map(srgb_to_linear) } else { c })
+    }
+
+    fn color(&self, n: Node, name: &str, default: Rgb) -> R<Rgb> {
+        match self.prop(n, name) {
+            Some(p) if p.tag_name().name() == "texture" || p.tag_name().name() == "ref" => {
+                Ok(self.texture(n, name, default)?.mean())
+            }
+            Some(p) => self.color_of(p),
+            None => Ok(default),
+        }
+    }
+
+    fn vector3(&self, p: Node) -> R<Vec3> {
+        if let Some(v) = self.attr(p, "value")? {
+            let xs = self.numbers(p, &v)?;
+            return match xs.as_slice() {
+                [a] => Ok(Vec3::splat(*a)),
+                [x, y, z] => Ok(vec3(*x, *y, *z)),
+                _ => Err(self.err(p, "expected 3 values")),
+            };
+        }
+        let c = |k: &str| -> R<f32> { Ok(self.attr(p, k)?.map(|s| s.trim().parse::<f32>()).transpose().map_err(|_| self.err(p, format!("bad '{k}'")))?.unwrap_or(0.0)) };
+        Ok(vec3(c("x")?, c("y")?, c("z")?))
+    }
+
+    fn point(&self, n: Node, name: &str, default: Vec3) -> R<Vec3> {
+        match self.prop(n, name) {
+            Some(p) => self.vector3(p),
+            None => Ok(default),
+        }
+    }
+
+    fn transform(&self, n: Node, name: &str) -> R<Transform> {
+        let Some(t) = self.prop(n, name) else { return Ok(Transform::IDENTITY) };
+        let mut acc = Transform::IDENTITY;
+        for op in t.children().filter(|c| c.is_element()) {
+            let xyz = |default: f64| -> R<[f64; 3]> {
+                if let Some(v) = self.attr(op, "value")? {
+                    let xs = self.numbers(op, &v)?;
+                    return match xs.as_slice() {
+                        [a] => Ok([*a as f64; 3]),
+                        [x, y, z] => Ok([*x as f64, *y as f64, *z as f64]),
+                        _ => Err(self.err(op, "expected 1 or 3 values")),
+                    };
+                }
+                let c = |k: &str| -> R<f64> { Ok(self.attr(op, k)?.map(|s| s.trim().parse::<f64>()).transpose().map_err(|_| self.err(op, format!("bad '{k}'")))?.unwrap_or(default)) };
+                Ok([c("x")?, c("y")?, c("z")?])
+            };
+            let vec_attr = |k: &str| -> R<Option<[f64; 3]>> {
+                let Some(v) = self.attr(op, k)? else { return Ok(None) };
+                let xs = self.numbers(op, &v)?;
+                if xs.len() != 3 {
+                    return Err(self.err(op, format!("'{k}' needs 3 values")));
+                }
+                Ok(Some([xs[0] as f64, xs[1] as f64, xs[2] as f64]))
+            };
+            let singular = || self.err(op, "transform is singular or not finite");
+            let step = match op.tag_name().name() {
+                "translate" => Transform::translate(xyz(0.0)?),
+                "scale" => Transform::scale(xyz(1.0)?).ok_or_else(singular)?,
+                "rotate" => {
+                    let axis = xyz(0.0)?;
+                    let angle: f64 = self.attr(op, "angle")?.ok_or_else(|| self.err(op, "rotate needs an angle"))?.trim().parse().map_err(|_| self.err(op, "bad angle"))?;
+                    Transform::rotate(axis, angle).ok_or_else(|| self.err(op, "rotation axis is zero"))?
+                }
+                "matrix" => {
+                    let v = self.attr(op, "value")?.ok_or_else(|| self.err(op, "matrix needs a value"))?;
+                    let xs = self.numbers(op, &v)?;
+                    let mut m = [[0.0f64; 4]; 4];
+                    match xs.len() {
+                        16 => (0..16).for_each(|i| m[i / 4][i % 4] = xs[i] as f64),
+                        9 => {
+                            (0..9).for_each(|i| m[i / 3][i % 3] = xs[i] as f64);
+                            m[3][3] = 1.0;
+                        }
+                        k => return Err(self.err(op, format!("matrix needs 9 or 16 values, found {k}"))),
+                    }
+                    Transform::from_matrix(m).ok_or_else(singular)?
+                }
+                "lookat" | "lookAt" => {
+                    let origin = vec_attr("origin")?.ok_or_else(|| self.err(op, "lookat needs an origin"))?;
+                    let target = vec_attr("target")?.ok_or_else(|| self.err(op, "lookat needs a target"))?;
+                    let up = match vec_attr("up")? {
+                        Some(u) => u,
+                        None => {
+                            // Any vector not parallel to the view direction.
+                            let d = [target[0] - origin[0], target[1] - origin[1], target[2] - origin[2]];
+                            let f = Frame::from_normal(vec3(d[0] as f32, d[1] as f32, d[2] as f32).normalize());
+                            [f.t.x as f64, f.t.y as f64, f.t.z as f64]
+                        }
+                    };
+                    Transform::look_at(origin, target, up).ok_or_else(|| self.err(op, "lookat: origin equals target or up is parallel to the view"))?
+                }
+                other => return Err(self.err(op, format!("unknown transform operation <{other}>"))),
+            };
+            acc = step.compose(&acc);
+        }
+        if acc.m.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(self.err(t, "transform is not finite"));
+        }
+        Ok(acc)
+    }
+
+    /// File path relative to the current file, refusing paths that leave the scene folder.
+    fn resolve(&self, n: Node, name: &str) -> R<PathBuf> {
+        let base = self.file.parent().unwrap_or(Path::new("."));
+        let p = confined_path(base, name).map_err(|e| self.err(n, e))?;
+        let canon_root = self.root.canonicalize().unwrap_or(self.root.clone());
+        let canon = p.canonicalize().unwrap_or(p.clone());
+        if !canon.starts_with(&canon_root) {
+            return Err(self.err(n, format!("'{name}' leaves the scene folder {}", self.root.display())));
+        }
+        if !p.exists() {
+            return Err(self.err(n, format!("file '{}' not found", p.display())));
+        }
+        Ok(p)
+    }
+
+    // ----- textures ---------------------------------------------------------------------
+
+    /// Parameter `name` as a texture: a constant, a nested <texture>, or a <ref>.
+    fn texture(&self, n: Node, name: &str, default: Rgb) -> R<Texture> {
+        let Some(p) = self.prop(n, name) else { return Ok(Texture::Constant(default)) };
+        match p.tag_name().name() {
+            "texture" => self.texture_node(p),
+            "ref" => {
+                let id = self.attr(p, "id")?.ok_or_else(|| self.err(p, "<ref> needs an id"))?;
+                self.textures.get(&id).cloned().ok_or_else(|| self.err(p, format!("no texture with id '{id}'")))
+            }
+            _ => Ok(Texture::Constant(self.color_of(p)?)),
+        }
+    }
+
+    fn uv_transform(&self, n: Node) -> R<UvTransform> {
+        if self.prop(n, "to_uv").is_some() {
+            let t = self.transform(n, "to_uv")?;
+            let m = t.m;
+            return Ok(UvTransform { m: [m[0][0] as f32, m[0][1] as f32, m[0][3] as f32, m[1][0] as f32, m[1][1] as f32, m[1][3] as f32] });
+        }
+        let s = self.float(n, "uvscale", 1.0)?;
+        Ok(UvTransform::scale_offset(self.float(n, "uscale", s)?, self.float(n, "vscale", s)?, self.float(n, "uoffset", 0.0)?, self.float(n, "voffset", 0.0)?))
+    }
+
+    fn texture_node(&self, t: Node) -> R<Texture> {
+        let ty = self.attr(t, "type")?.unwrap_or_default();
+        match ty.as_str() {
+            "bitmap" => {
+                let f = self.string(t, "filename")?.ok_or_else(|| self.err(t, "bitmap needs a filename"))?;
+                let path = self.resolve(t, &f)?;
+                let raw = self.boolean(t, "raw", false)?;
+                let nearest = matches!(self.string(t, "filter_type")?.as_deref(), Some("nearest"));
+                let bitmap = self.bitmap(t, &path, raw, nearest)?;
+                Ok(Texture::Bitmap { bitmap, to_uv: self.uv_transform(t)? })
+            }
+            "checkerboard" => Ok(Texture::Checkerboard {
+                color0: self.color(t, "color0", Rgb::splat(0.4))?,
+                color1: self.color(t, "color1", Rgb::splat(0.2))?,
+                to_uv: self.uv_transform(t)?,
+            }),
+            "scale" => {
+                let inner = t.children().find(|c| c.is_element() && (c.tag_name().name() == "texture" || c.tag_name().name() == "ref"));
+                let inner = match inner {
+                    Some(c) if c.tag_name().name() == "texture" => self.texture_node(c)?,
+                    Some(c) => {
+                        let id = self.attr(c, "id")?.unwrap_or_default();
+                        self.textures.get(&id).cloned().ok_or_else(|| self.err(c, format!("no texture with id '{id}'")))?
+                    }
+                    None => return Err(self.err(t, "scale texture needs a nested texture")),
+                };
+                Ok(Texture::Scale { scale: self.float(t, "scale", 1.0)?, inner: Box::new(inner) })
+            }
+            other => Err(self.err(t, format!("texture type '{other}' is not supported"))),
+        }
+    }
+
+    fn bitmap(&self, n: Node, path: &Path, raw: bool, nearest: bool) -> R<Arc<Bitmap>> {
+        let key = (path.to_path_buf(), raw, nearest);
+        if let Some(b) = self.bitmaps.borrow().get(&key) {
+            return Ok(b.clone());
+        }
+        let img = Image::load(path).map_err(|e| self.err(n, e.to_string()))?;
+        let is_hdr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        let filter = if nearest { TexFilter::Nearest } else { TexFilter::Bilinear };
+        let b = Arc::new(Bitmap::new(img, !raw && !is_hdr, filter));
+        self.bitmaps.borrow_mut().insert(key, b.clone());
+        Ok(b)
+    }
+
+    // ----- materials --------------------------------------------------------------------
+
+    fn material(&mut self, n: Node) -> R<MaterialRef> {
+        let p = self.bsdf(n)?;
+        let id = self.attr(n, "id")?.unwrap_or_else(|| format!("anonymous{}", self.desc.materials.len()));
+        let index = self.desc.materials.len() as u32;
+        self.desc.materials.push(Material { name: id, bsdf: p.bsdf, perturbation: p.perturbation });
+        Ok(MaterialRef { index, alpha: p.alpha })
+    }
+
+    fn nested_bsdfs<'a, 'i>(&self, n: Node<'a, 'i>) -> Vec<Node<'a, 'i>> {
+        n.children().filter(|c| c.is_element() && (c.tag_name().name() == "bsdf" || (c.tag_name().name() == "ref" && c.attribute("name").is_none_or(|nm| nm.contains("bsdf"))))).collect()
+    }
+
+    fn nested(&mut self, n: Node, k: usize) -> R<Parsed> {
+        let kids = self.nested_bsdfs(n);
+        let c = *kids.get(k).ok_or_else(|| self.err(n, "expected a nested <bsdf>"))?;
+        if c.tag_name().name() == "ref" {
+            let id = self.attr(c, "id")?.unwrap_or_default();
+            let m = self.materials.get(&id).cloned().ok_or_else(|| self.err(c, format!("no bsdf with id '{id}'")))?;
+            let mat = &self.desc.materials[m.index as usize];
+            return Ok(Parsed { bsdf: mat.bsdf.clone(), perturbation: mat.perturbation.clone(), alpha: m.alpha });
+        }
+        self.bsdf(c)
+    }
+
+    fn distribution(&self, n: Node) -> R<Microfacet> {
+        let kind = match self.string(n, "distribution")?.as_deref().unwrap_or("beckmann") {
+            "beckmann" | "phong" => MicrofacetType::Beckmann,
+            "ggx" => MicrofacetType::Ggx,
+            other => return Err(self.err(n, format!("unknown microfacet distribution '{other}'"))),
+        };
+        let scalar = |name: &str, d: f32| -> R<f32> {
+            match self.prop(n, name) {
+                Some(p) if p.tag_name().name() == "texture" || p.tag_name().name() == "ref" => Ok(self.texture(n, name, Rgb::splat(d))?.mean().mean()),
+                _ => self.float(n, name, d),
+            }
+        };
+        let alpha = scalar("alpha", 0.1)?;
+        Ok(Microfacet::new(kind, scalar("alpha_u", alpha)?, scalar("alpha_v", alpha)?))
+    }
+
+    fn eta(&self, n: Node, int_default: f32) -> R<f32> {
+        let int = self.float(n, "int_ior", int_default)?;
+        let ext = self.float(n, "ext_ior", 1.000277)?;
+        if !(int > 0.0 && ext > 0.0) {
+            return Err(self.err(n, "indices of refraction must be positive"));
+        }
+        Ok(int / ext)
+    }
+
+    fn conductor_ior(&self, n: Node) -> R<(Rgb, Rgb)> {
+        let name = self.string(n, "material")?.unwrap_or_else(|| "none".into());
+        let (eta, k) = named_conductor(&name).ok_or_else(|| self.err(n, format!("unknown conductor '{name}'")))?;
+        let ext = self.float(n, "ext_eta", 1.0)?;
+        let eta = self.color(n, "eta", eta)?;
+        let k = self.color(n, "k", k)?;
+        Ok((eta / ext, k / ext))
+    }
+
+    fn bsdf(&mut self, n: Node) -> R<Parsed> {
+        let ty = self.attr(n, "type")?.unwrap_or_default();
+        let plain = |bsdf: Bsdf| Ok(Parsed { bsdf, perturbation: None, alpha: None });
+        match ty.as_str() {
+            "diffuse" | "lambertian" => plain(Bsdf::Diffuse(Diffuse { reflectance: self.texture(n, "reflectance", Rgb::splat(0.5))? })),
+            "roughdiffuse" => plain(Bsdf::RoughDiffuse(RoughDiffuse { reflectance: self.texture(n, "reflectance", Rgb::splat(0.5))?, alpha: self.float(n, "alpha", 0.2)? })),
+            "conductor" => {
+                let (eta, k) = self.conductor_ior(n)?;
+                plain(Bsdf::Conductor(Conductor { eta, k, specular_reflectance: self.texture(n, "specular_reflectance", Rgb::WHITE)? }))
+            }
+            "roughconductor" => {
+                let (eta, k) = self.conductor_ior(n)?;
+                plain(Bsdf::RoughConductor(RoughConductor { distribution: self.distribution(n)?, eta, k, specular_reflectance: self.texture(n, "specular_reflectance", Rgb::WHITE)? }))
+            }
+            "dielectric" => plain(Bsdf::Dielectric(Dielectric { eta: self.eta(n, 1.5046)?, specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?, specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)? })),
+            "thindielectric" => plain(Bsdf::ThinDielectric(ThinDielectric { eta: self.eta(n, 1.5046)?, specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?, specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)? })),
+            "roughdielectric" => plain(Bsdf::RoughDielectric(RoughDielectric { distribution: self.distribution(n)?, eta: self.eta(n, 1.5046)?, specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?, specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)? })),
+            "plastic" => plain(Bsdf::Plastic(Plastic::new(self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?, self.texture(n, "specular_reflectance", Rgb::WHITE)?, self.eta(n, 1.49)?, self.boolean(n, "nonlinear", false)?))),
+            "roughplastic" => plain(Bsdf::RoughPlastic(RoughPlastic::new(self.distribution(n)?, self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?, self.texture(n, "specular_reflectance", Rgb::WHITE)?, self.eta(n, 1.49)?, self.boolean(n, "nonlinear", false)?))),
+            "phong" => plain(Bsdf::Phong(Phong::new(self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?, self.texture(n, "specular_reflectance", Rgb::splat(0.2))?, self.float(n, "exponent", 30.0)?))),
+            "coating" | "roughcoating" => {
+                if ty == "roughcoating" {
+                    self.warn(format!("{}: roughcoating is rendered as a smooth coating", self.file.display()));
+                }
+                let inner = self.nested(n, 0)?;
+                let sigma = self.color(n, "sigma_a", Rgb::BLACK)? * self.float(n, "thickness", 1.0)?;
+                Ok(Parsed { bsdf: Bsdf::Coating(Coating::new(self.eta(n, 1.5046)?, self.color(n, "specular_reflectance", Rgb::WHITE)?, sigma, inner.bsdf)), ..inner })
+            }
+            "twosided" => {
+                let front = self.nested(n, 0)?;
+                let back = if self.nested_bsdfs(n).len() > 1 { self.nested(n, 1)?.bsdf } else { front.bsdf.clone() };
+                Ok(Parsed { bsdf: Bsdf::TwoSided(Box::new(front.bsdf), Box::new(back)), ..front })
+            }
+            "mask" => {
+                let opacity = self.texture(n, "opacity", Rgb::splat(0.5))?;
+                let inner = self.nested(n, 0)?;
+                Ok(Parsed { alpha: Some(opacity), ..inner })
+            }
+            "bump" | "bumpmap" => {
+                let tex = n.children().find(|c| c.is_element() && c.tag_name().name() == "texture").ok_or_else(|| self.err(n, "bump needs a <texture>"))?;
+                let height = self.texture_node(tex)?;
+                let scale = self.float(n, "scale", 1.0)?;
+                let inner = self.nested(n, 0)?;
+                Ok(Parsed { perturbation: Some(Perturbation::Bump { height, scale }), ..inner })
+            }
+            "normalmap" => {
+                let normals = match self.prop(n, "normalmap") {
+                    Some(_) => self.texture(n, "normalmap", Rgb::splat(0.5))?,
+                    None => {
+                        let tex = n.children().find(|c| c.is_element() && c.tag_name().name() == "texture").ok_or_else(|| self.err(n, "normalmap needs a <texture>"))?;
+                        self.texture_node(tex)?
+                    }
+                };
+                                let inner = self.nested(n, 0)?;
+                Ok(Parsed { perturbation: Some(Perturbation::NormalMap { normals }), ..inner })
+            }
+            "null" => Ok(Parsed { bsdf: Bsdf::Black, perturbation: None, alpha: Some(Texture::constant(0.0)) }),
+            other => {
+                let pos = n.document().text_pos_at(n.range().start);
+                self.warn(format!("{}:{}: BSDF type '{other}' is not supported; rendered as magenta diffuse", self.file.display(), pos.row));
+                plain(Material::fallback(other).bsdf)
+            }
+        }
+    }
+
+    fn default_material(&mut self) -> u32 {
+        if let Some(i) = self.default_material {
+            return i;
+        }
+        let i = self.desc.materials.len() as u32;
+        self.desc.materials.push(Material::new("default", Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(0.5) })));
+        self.default_material = Some(i);
+        i
+    }
+
+    // ----- shapes -----------------------------------------------------------------------
+
+    fn shape(&mut self, n: Node) -> R<()> {
+        let ty = self.attr(n, "type")?.unwrap_or_default();
+        let to_world = self.transform(n, "to_world")?;
+        let mut smooth_if_missing = false;
+        let data: TriangleData = match ty.as_str() {
+            "obj" => {
+                let f = self.string(n, "filename")?.ok_or_else(|| self.err(n, "obj needs a filename"))?;
+                let obj = super::obj::load_obj(&self.resolve(n, &f)?)?;
+                smooth_if_missing = true;
+                merge_groups(obj.groups.into_iter().map(|g| g.data).collect())
+            }
+            "ply" => {
+                let f = self.string(n, "filename")?.ok_or_else(|| self.err(n, "ply needs a filename"))?;
+                smooth_if_missing = true;
+                super::ply::load_ply(&self.resolve(n, &f)?)?
+            }
+            "serialized" => {
+                let f = self.string(n, "filename")?.ok_or_else(|| self.err(n, "serialized needs a filename"))?;
+                let idx = self.int(n, "shape_index", 0)?;
+                if idx < 0 {
+                    return Err(self.err(n, "shape_index must not be negative"));
+                }
+                smooth_if_missing = true;
+                super::serialized::load_serialized(&self.resolve(n, &f)?, idx as usize)?
+            }
+            "rectangle" => shapes::rectangle(),
+            "cube" => shapes::cube(),
+            "disk" => shapes::disk(256),
+            "sphere" => {
+                let c = self.point(n, "center", Vec3::ZERO)?;
+                let r = self.float(n, "radius", 1.0)? as f64;
+                let local = Transform::translate([c.x as f64, c.y as f64, c.z as f64]).compose(&Transform::scale([r, r, r]).ok_or_else(|| self.err(n, "sphere radius must not be zero"))?);
+                shapes::sphere(64).transform(&local)
+            }
+            "cylinder" => {
+                let p0 = self.point(n, "p0", Vec3::ZERO)?;
+                let p1 = self.point(n, "p1", vec3(0.0, 0.0, 1.0))?;
+                let r = self.float(n, "radius", 1.0)?;
+                let axis = p1 - p0;
+                let len = axis.length();
+                if !(len > 0.0) || !(r > 0.0) {
+                    return Err(self.err(n, "cylinder needs p0 ≠ p1 and a positive radius"));
+                }
+                let f = Frame::from_normal(axis / len);
+                let m = [
+                    [(f.s.x * r) as f64, (f.t.x * r) as f64, (f.n.x * len) as f64, p0.x as f64],
+                    [(f.s.y * r) as f64, (f.t.y * r) as f64, (f.n.y * len) as f64, p0.y as f64],
+                    [(f.s.z * r) as f64, (f.t.z * r) as f64, (f.n.z * len) as f64, p0.z as f64],
+                    [0.0, 0.0, 0.0, 1.0],
+                ];
+                shapes::cylinder(128).transform(&Transform::from_matrix(m).ok_or_else(|| self.err(n, "degenerate cylinder"))?)
+            }
+            other => {
+                let pos = n.document().text_pos_at(n.range().start);
+                self.warn(format!("{}:{}: shape type '{other}' is not supported; skipped", self.file.display(), pos.row));
+                return Ok(());
+            }
+        };
+        let mut data = data.transform(&to_world);
+        if to_world.flips_handedness() {
+            // Mirroring reverses the winding; keep geometric normals facing the same side.
+            data.indices.iter_mut().for_each(|t| t.swap(1, 2));
+        }
+        let face_normals = self.boolean(n, "face_normals", false)?;
+        if face_normals {
+            data.normals.clear();
+        } else if data.normals.is_empty() && smooth_if_missing {
+            data.normals = smooth_normals(&data);
+        }
+        if self.boolean(n, "flip_normals", false)? {
+            data.normals.iter_mut().for_each(|v| *v = -*v);
+            data.indices.iter_mut().for_each(|t| t.swap(1, 2));
+        }
+        // Material: a nested <bsdf>, a <ref>, or the default diffuse.
+        let mut mref = None;
+        for c in n.children().filter(|c| c.is_element()) {
+            match c.tag_name().name() {
+                "bsdf" => mref = Some(self.material(c)?),
+                "ref" => {
+                    let id = self.attr(c, "id")?.unwrap_or_default();
+                    let m = self.materials.get(&id).cloned().ok_or_else(|| self.err(c, format!("no bsdf with id '{id}'")))?;
+                    mref = Some(m);
+                }
+                _ => {}
+            }
+        }
+        let mref = match mref {
+            Some(m) => m,
+            None => MaterialRef { index: self.default_material(), alpha: None },
+        };
+        let mut emission = None;
+        if let Some(e) = n.children().find(|c| c.is_element() && c.tag_name().name() == "emitter") {
+            let ety = self.attr(e, "type")?.unwrap_or_default();
+            if ety != "area" {
+                return Err(self.err(e, format!("an emitter inside a shape must be 'area', not '{ety}'")));
+            }
+            emission = Some(self.color(e, "radiance", Rgb::WHITE)?);
+        }
+        let name = self.attr(n, "id")?.unwrap_or_else(|| format!("{ty}#{}", self.desc.meshes.len()));
+        let mut mesh: Mesh = data.into_mesh(name);
+        mesh.material = mref.index;
+        mesh.alpha = mref.alpha;
+        mesh.emission = emission;
+        self.desc.meshes.push(mesh);
+        Ok(())
+    }
+
+    // ----- emitters, sensor, integrator -------------------------------------------------
+
+    fn emitter(&mut self, n: Node) -> R<()> {
+        let ty = self.attr(n, "type")?.unwrap_or_default();
+        let to_world = self.transform(n, "to_world")?;
+        let light = match ty.as_str() {
+            "point" => {
+                let pos = self.point(n, "position", to_world.point(Vec3::ZERO))?;
+                Light::Point { position: pos, intensity: self.color(n, "intensity", Rgb::WHITE)? }
+            }
+            "spot" => {
+                let cutoff = self.float(n, "cutoff_angle", 20.0)?.to_radians();
+                let beam = self.float(n, "beam_width", cutoff.to_degrees() * 0.75)?.to_radians().min(cutoff);
+                let forward = to_world.vector(vec3(0.0, 0.0, 1.0)).normalize();
+                Light::Spot {
+                    position: to_world.point(Vec3::ZERO),
+                    frame: Frame::from_normal(forward),
+                    intensity: self.color(n, "intensity", Rgb::WHITE)?,
+                    cos_cutoff: cutoff.cos(),
+                    cutoff,
+                    beam_width: beam,
+                }
+            }
+            "directional" => {
+                let d = match self.prop(n, "direction") {
+                    Some(p) => self.vector3(p)?,
+                    None => to_world.vector(vec3(0.0, 0.0, 1.0)),
+                };
+                if !(d.length() > 0.0) {
+                    return Err(self.err(n, "directional light needs a non-zero direction"));
+                }
+                Light::Directional { direction: d.normalize(), irradiance: self.color(n, "irradiance", Rgb::WHITE)? }
+            }
+            "constant" => Light::Constant { radiance: self.color(n, "radiance", Rgb::WHITE)? },
+            "envmap" => {
+                let f = self.string(n, "filename")?.ok_or_else(|| self.err(n, "envmap needs a filename"))?;
+                let path = self.resolve(n, &f)?;
+                let img = Image::load(&path).map_err(|e| self.err(n, e.to_string()))?;
+                let scale = self.float(n, "scale", 1.0)?;
+                Light::Env(Box::new(EnvMap::new(img, scale, to_world)))
+            }
+            "sunsky" | "sun" | "sky" => {
+                // The Hosek–Wilkie sky and the spectral sun are not implemented yet: stand in a
+                // directional sun and a constant sky so the scene renders, and say so.
+                let d = self.point(n, "sun_direction", vec3(0.0, 1.0, 0.0))?;
+                let sun = self.float(n, "sun_scale", 1.0)?;
+                let sky = self.float(n, "sky_scale", 1.0)?;
+                self.warn(format!("{}: '{ty}' is approximated by a directional sun (irradiance {sun}) and a constant sky (radiance {:.2}); not Mitsuba's model", self.file.display(), 0.05 * sky));
+                if ty != "sky" {
+                    self.desc.lights.push(Light::Directional { direction: -d.normalize(), irradiance: Rgb::splat(sun) });
+                }
+                if ty == "sun" {
+                    return Ok(());
+                }
+                Light::Constant { radiance: rgb(0.6, 0.75, 1.0) * (0.05 * sky) }
+            }
+            "area" => return Err(self.err(n, "an area emitter must be inside a <shape>")),
+            other => {
+                let pos = n.document().text_pos_at(n.range().start);
+                self.warn(format!("{}:{}: emitter type '{other}' is not supported; ignored", self.file.display(), pos.row));
+                return Ok(());
+            }
+        };
+        self.desc.lights.push(light);
+        Ok(())
+    }
+
+    fn sensor(&mut self, n: Node) -> R<()> {
+        let ty = self.attr(n, "type")?.unwrap_or_default();
+        if ty != "perspective" && ty != "thinlens" {
+            let pos = n.document().text_pos_at(n.range().start);
+            self.warn(format!("{}:{}: sensor '{ty}' is not supported; using a perspective camera", self.file.display(), pos.row));
+        }
+        let to_world = self.transform(n, "to_world")?;
+        let mut settings = RenderSettings { integrator: self.desc.settings.integrator.clone(), max_depth: self.desc.settings.max_depth, rr_depth: self.desc.settings.rr_depth, ..RenderSettings::default() };
+        let film = n.children().find(|c| c.is_element() && c.tag_name().name() == "film");
+        if let Some(f) = film {
+            let w = self.int(f, "width", 768)?;
+            let h = self.int(f, "height", 576)?;
+            check_resolution(w, h).map_err(|m| self.err(f, m))?;
+            settings.width = w as usize;
+            settings.height = h as usize;
+            if let Some(rf) = f.children().find(|c| c.is_element() && c.tag_name().name() == "rfilter") {
+                settings.filter = match self.attr(rf, "type")?.as_deref().unwrap_or("gaussian") {
+                    "box" => Filter::Box,
+                    "tent" => Filter::Tent { radius: self.float(rf, "radius", 1.0)? },
+                    "gaussian" => Filter::Gaussian { stddev: self.float(rf, "stddev", 0.5)? },
+                    other => {
+                        self.warn(format!("{}: reconstruction filter '{other}' is not supported; using gaussian", self.file.display()));
+                        Filter::Gaussian { stddev: 0.5 }
+                    }
+                };
+            }
+        }
+        if let Some(s) = n.children().find(|c| c.is_element() && c.tag_name().name() == "sampler") {
+            let spp = self.int(s, "sample_count", 4)?;
+            if !(1..=1 << 24).contains(&spp) {
+                return Err(self.err(s, format!("sample_count {spp} is out of range (1 to 2^24)")));
+            }
+            settings.spp = spp as u32;
+        }
+        let fov = match self.prop(n, "fov") {
+            Some(_) => self.float(n, "fov", 45.0)?,
+            None => match self.string(n, "focal_length")? {
+                Some(fl) => {
+                    let mm: f32 = fl.trim_end_matches("mm").trim().parse().map_err(|_| self.err(n, format!("bad focal length '{fl}'")))?;
+                    2.0 * (36.0 / (2.0 * mm)).atan().to_degrees()
+                }
+                None => 45.0,
+            },
+        };
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(self.err(n, format!("field of view {fov}° must lie in (0, 180)")));
+        }
+        let axis = match self.string(n, "fov_axis")?.as_deref().unwrap_or("x") {
+            "x" => FovAxis::X,
+            "y" => FovAxis::Y,
+            "diagonal" => FovAxis::Diagonal,
+            "smaller" => FovAxis::Smaller,
+            "larger" => FovAxis::Larger,
+            other => return Err(self.err(n, format!("unknown fov_axis '{other}'"))),
+        };
+        self.fov = (fov, axis);
+        let aperture = if ty == "thinlens" { self.float(n, "aperture_radius", 0.03)? } else { 0.0 };
+        let focus = self.float(n, "focus_distance", 0.0)?;
+        if aperture > 0.0 && !(focus > 0.0) {
+            return Err(self.err(n, "thinlens needs a positive focus_distance"));
+        }
+        let near = self.float(n, "near_clip", 0.0)?.max(0.0);
+        self.desc.camera = Some(Camera::new(to_world, settings.width, settings.height, fov, axis, aperture, focus, near));
+        self.desc.settings = settings;
+        Ok(())
+    }
+
+    fn integrator(&mut self, n: Node) -> R<()> {
+        let ty = self.attr(n, "type")?.unwrap_or_default();
+        // Wrappers (adaptive, irrcache…) nest the integrator that sets the depth.
+        let mut node = n;
+        while self.prop(node, "max_depth").is_none() {
+            match node.children().find(|c| c.is_element() && c.tag_name().name() == "integrator") {
+                Some(c) => node = c,
+                None => break,
+            }
+        }
+        let s = &mut self.desc.settings;
+        s.integrator = ty;
+        let (md, rr) = (self.int(node, "max_depth", -1)?, self.int(node, "rr_depth", 5)?);
+        if md < -1 || rr < 0 {
+            return Err(self.err(node, "max_depth must be ≥ -1 and rr_depth ≥ 0"));
+        }
+        let s = &mut self.desc.settings;
+        s.max_depth = md.min(i32::MAX as i64) as i32;
+        s.rr_depth = rr.min(u32::MAX as i64) as u32;
+        Ok(())
+    }
+}
+
+/// Refuses resolutions that are zero, negative, or too large to hold in memory.
+pub fn check_resolution(w: i64, h: i64) -> Result<(), String> {
+    if w <= 0 || h <= 0 {
+        return Err(format!("resolution {w}×{h} must be positive"));
+    }
+    if w > 1 << 16 || h > 1 << 16 || w * h > 1 << 28 {
+        return Err(format!("resolution {w}×{h} is too large (at most 65536 on a side and 2^28 pixels)"));
+    }
+    Ok(())
+}
+
+fn merge_groups(groups: Vec<TriangleData>) -> TriangleData {
+    let mut out = TriangleData::default();
+    let any_normals = groups.iter().all(|g| !g.normals.is_empty()) && !groups.is_empty();
+    let any_uvs = groups.iter().all(|g| !g.uvs.is_empty()) && !groups.is_empty();
+    for g in groups {
+        let base = out.positions.len() as u32;
+        out.positions.extend(&g.positions);
+        if any_normals {
+            out.normals.extend(&g.normals);
+        }
+        if any_uvs {
+            out.uvs.extend(&g.uvs);
+        }
+        out.indices.extend(g.indices.iter().map(|t| t.map(|i| i + base)));
+    }
+    out
+}
+
+/// Angle-weighted vertex normals (what Mitsuba computes for meshes given without normals).
+pub fn smooth_normals(d: &TriangleData) -> Vec<Vec3> {
+    let mut n = vec![Vec3::ZERO; d.positions.len()];
+    for t in &d.indices {
+        let p = t.map(|i| d.positions[i as usize]);
+        let face = (p[1] - p[0]).cross(p[2] - p[0]);
+        if face.length_squared() == 0.0 {
+            continue;
+        }
+        let face = face.normalize();
+        for k in 0..3 {
+            let e1 = p[(k + 1) % 3] - p[k];
+            let e2 = p[(k + 2) % 3] - p[k];
+            let denom = (e1.length() * e2.length()).max(1e-30);
+            let angle = (e1.dot(e2) / denom).clamp(-1.0, 1.0).acos();
+            n[t[k] as usize] += face * angle;
+        }
+    }
+    n.iter().map(|v| if v.length_squared() > 0.0 { v.normalize() } else { vec3(0.0, 0.0, 1.0) }).collect()
+}

@@ -1,0 +1,78 @@
+//! Scene file readers. Every error names the file (and line, where there is one) and says
+//! what is wrong; no input makes the loader panic.
+
+pub mod mitsuba;
+pub mod obj;
+pub mod ply;
+pub mod serialized;
+
+use std::path::{Component, Path, PathBuf};
+
+use super::{Scene, SceneDescription, SceneError};
+
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    #[error("{}{}: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
+    At { path: PathBuf, line: Option<usize>, message: String },
+    #[error("{}: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{}: {source}", path.display())]
+    Scene { path: PathBuf, source: SceneError },
+}
+
+impl LoadError {
+    /// Error at a line of a file (0 = no particular line).
+    pub fn at(path: &Path, line: usize, message: impl Into<String>) -> LoadError {
+        LoadError::At { path: path.to_path_buf(), line: (line > 0).then_some(line), message: message.into() }
+    }
+    pub fn io(path: &Path, source: std::io::Error) -> LoadError {
+        LoadError::Io { path: path.to_path_buf(), source }
+    }
+}
+
+pub(crate) fn read_text(path: &Path) -> Result<String, LoadError> {
+    let bytes = std::fs::read(path).map_err(|e| LoadError::io(path, e))?;
+    String::from_utf8(bytes).map_err(|e| LoadError::at(path, 0, format!("not UTF-8 text: {e}")))
+}
+
+/// Joins a relative file name to `base`, refusing absolute paths and `..` that climb out.
+pub(crate) fn confined_path(base: &Path, name: &str) -> Result<PathBuf, String> {
+    let rel = Path::new(name);
+    if rel.is_absolute() || rel.components().any(|c| matches!(c, Component::Prefix(_) | Component::RootDir)) {
+        return Err(format!("'{name}' is an absolute path; scene files may only refer to files inside their folder"));
+    }
+    let mut depth = 0i32;
+    for c in rel.components() {
+        match c {
+            Component::ParentDir => depth -= 1,
+            Component::Normal(_) => depth += 1,
+            _ => {}
+        }
+        if depth < 0 {
+            return Err(format!("'{name}' leaves the scene folder"));
+        }
+    }
+    Ok(base.join(rel))
+}
+
+/// Loads a scene description by file extension (`-D name=value` pairs go to Mitsuba files).
+pub fn load_description(path: &Path, defines: &[(String, String)]) -> Result<SceneDescription, LoadError> {
+    if !path.exists() {
+        return Err(LoadError::at(path, 0, "file not found"));
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let root = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")).to_path_buf();
+    match ext.as_str() {
+        "xml" => mitsuba::Loader::new(&root, defines).load(path),
+        other => Err(LoadError::at(path, 0, format!("unsupported scene format '.{other}' (expected .xml)"))),
+    }
+}
+
+/// Loads and builds a scene ready to render.
+pub fn load(path: &Path, defines: &[(String, String)]) -> Result<Scene, LoadError> {
+    let mut desc = load_description(path, defines)?;
+    if desc.camera.is_none() {
+        desc.camera = Some(super::default_camera(&desc));
+    }
+    Scene::build(desc).map_err(|source| LoadError::Scene { path: path.to_path_buf(), source })
+}

@@ -1,0 +1,336 @@
+//! The scene model every estimator reads: triangle meshes with materials, lights, camera
+//! and render settings, plus the ray-tracing acceleration structure over all triangles.
+
+pub mod builtin;
+pub mod load;
+pub mod shapes;
+
+use crate::camera::Camera;
+use crate::color::Rgb;
+use crate::film::Filter;
+use crate::geometry::{offset_origin, Accelerator, Bvh, BuildTriangle, HitFilter, Ray};
+use crate::light::{AreaEmitter, Light};
+use crate::material::Material;
+use crate::math::{vec2, Aabb, Frame, Vec2, Vec3};
+use crate::sampling::{mix64, Distribution1D};
+use crate::texture::Texture;
+
+/// A triangle mesh in world space.
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    /// Per-vertex shading normals, or empty for flat shading.
+    pub normals: Vec<Vec3>,
+    /// Per-vertex texture coordinates, or empty (then uv = barycentrics, as in Mitsuba).
+    pub uvs: Vec<Vec2>,
+    pub indices: Vec<[u32; 3]>,
+    pub material: u32,
+    /// Emitted radiance on the front side, for area lights.
+    pub emission: Option<Rgb>,
+    /// Opacity mask: hits where it is below a random threshold pass through.
+    pub alpha: Option<Texture>,
+}
+
+impl Mesh {
+    pub fn triangle(&self, i: usize) -> [Vec3; 3] {
+        self.indices[i].map(|k| self.positions[k as usize])
+    }
+    pub fn uv_at(&self, i: usize, b1: f32, b2: f32) -> Vec2 {
+        if self.uvs.is_empty() {
+            return vec2(b1, b2);
+        }
+        let [a, b, c] = self.indices[i].map(|k| self.uvs[k as usize]);
+        a * (1.0 - b1 - b2) + b * b1 + c * b2
+    }
+}
+
+/// Settings a scene file carries besides its contents.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    pub width: usize,
+    pub height: usize,
+    pub filter: Filter,
+    pub spp: u32,
+    /// Longest path in segments (Mitsuba's `max_depth`; -1 = unbounded).
+    pub max_depth: i32,
+    /// Depth from which Russian roulette starts.
+    pub rr_depth: u32,
+    /// Integrator the file names (informational; the command line chooses).
+    pub integrator: String,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings { width: 768, height: 576, filter: Filter::Gaussian { stddev: 0.5 }, spp: 64, max_depth: -1, rr_depth: 5, integrator: "path".into() }
+    }
+}
+
+/// What a loader produces: everything but the acceleration structure.
+#[derive(Debug, Default)]
+pub struct SceneDescription {
+    pub meshes: Vec<Mesh>,
+    pub materials: Vec<Material>,
+    /// Lights other than emissive meshes (which come from `Mesh::emission`).
+    pub lights: Vec<Light>,
+    pub camera: Option<Camera>,
+    pub settings: RenderSettings,
+    pub warnings: Vec<String>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("scene has no camera")]
+    NoCamera,
+    #[error("mesh '{mesh}': {reason}")]
+    BadMesh { mesh: String, reason: String },
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// A ray's hit with everything shading needs.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceInteraction {
+    pub p: Vec3,
+    pub t: f32,
+    /// Geometric normal (from the winding).
+    pub ng: Vec3,
+    /// Shading frame (interpolated normal, perturbed by bump/normal maps).
+    pub frame: Frame,
+    pub uv: Vec2,
+    /// Direction towards the ray's origin, world space.
+    pub wi: Vec3,
+    pub mesh: u32,
+    pub prim: u32,
+    pub material: u32,
+}
+
+impl SurfaceInteraction {
+    /// Ray leaving the surface in direction `d` without re-hitting it.
+    pub fn spawn_ray(&self, d: Vec3) -> Ray {
+        Ray::new(offset_origin(self.p, self.ng, d), d)
+    }
+    /// Ray towards point `q`, stopping just short of it.
+    pub fn spawn_ray_to(&self, q: Vec3) -> Ray {
+        let o = offset_origin(self.p, self.ng, q - self.p);
+        let d = q - o;
+        Ray { o, d, tmax: 1.0 - 1e-4 }
+    }
+}
+
+pub struct Scene {
+    pub meshes: Vec<Mesh>,
+    pub materials: Vec<Material>,
+    pub lights: Vec<Light>,
+    /// Light selection in proportion to power.
+    pub light_distribution: Distribution1D,
+    /// Index into `lights` of each mesh's area emitter.
+    pub mesh_light: Vec<Option<u32>>,
+    pub infinite_lights: Vec<u32>,
+    pub camera: Camera,
+    pub settings: RenderSettings,
+    pub warnings: Vec<String>,
+    accel: Box<dyn Accelerator>,
+    /// Global triangle index → (mesh, triangle within mesh).
+    tri_owner: Vec<(u32, u32)>,
+    bounds: Aabb,
+}
+
+/// Alpha test used during traversal: a deterministic hash of the ray picks the threshold,
+/// so a mask of opacity a is hit with probability a.
+struct AlphaFilter<'a> {
+    meshes: &'a [Mesh],
+    owner: &'a [(u32, u32)],
+}
+
+impl HitFilter for AlphaFilter<'_> {
+    fn accept(&self, ray: &Ray, prim: u32, b1: f32, b2: f32) -> bool {
+        let (m, t) = self.owner[prim as usize];
+        let mesh = &self.meshes[m as usize];
+        let Some(alpha) = &mesh.alpha else { return true };
+        let a = alpha.eval_scalar(mesh.uv_at(t as usize, b1, b2));
+        if a >= 1.0 {
+            return true;
+        }
+        if a <= 0.0 {
+            return false;
+        }
+        let h = mix64(
+            (ray.o.x.to_bits() as u64) ^ ((ray.o.y.to_bits() as u64) << 21) ^ ((ray.o.z.to_bits() as u64) << 42)
+                ^ mix64((ray.d.x.to_bits() as u64) ^ ((ray.d.y.to_bits() as u64) << 32) ^ prim as u64)
+                ^ (ray.d.z.to_bits() as u64).rotate_left(17),
+        );
+        ((h >> 40) as f32 * (1.0 / 16_777_216.0)) < a
+    }
+}
+
+impl Scene {
+    pub fn build(desc: SceneDescription) -> Result<Scene, SceneError> {
+        let SceneDescription { meshes, mut materials, lights: mut other_lights, camera, settings, warnings } = desc;
+        let camera = camera.ok_or(SceneError::NoCamera)?;
+        if materials.is_empty() {
+            materials.push(Material::fallback("default"));
+        }
+        let mut tris = Vec::new();
+        let mut tri_owner = Vec::new();
+        for (mi, mesh) in meshes.iter().enumerate() {
+            let bad = |reason: String| SceneError::BadMesh { mesh: mesh.name.clone(), reason };
+            if mesh.material as usize >= materials.len() {
+                return Err(bad(format!("material index {} out of range", mesh.material)));
+            }
+            if !mesh.normals.is_empty() && mesh.normals.len() != mesh.positions.len() {
+                return Err(bad("normal count differs from vertex count".into()));
+            }
+            if !mesh.uvs.is_empty() && mesh.uvs.len() != mesh.positions.len() {
+                return Err(bad("texture coordinate count differs from vertex count".into()));
+            }
+            if let Some(p) = mesh.positions.iter().find(|p| !p.is_finite()) {
+                return Err(bad(format!("non-finite vertex position {p:?}")));
+            }
+            for (ti, idx) in mesh.indices.iter().enumerate() {
+                if idx.iter().any(|&k| k as usize >= mesh.positions.len()) {
+                    return Err(bad(format!("triangle {ti} refers to a vertex beyond the {} given", mesh.positions.len())));
+                }
+                tris.push(BuildTriangle { v: mesh.triangle(ti), masked: mesh.alpha.is_some() });
+                tri_owner.push((mi as u32, ti as u32));
+            }
+        }
+        if tris.len() >= (1usize << 31) {
+            return Err(SceneError::Invalid("more than 2^31 triangles".into()));
+        }
+        let bvh = Bvh::build(&tris);
+        let bounds = bvh.bounds();
+        let radius = if bounds.is_empty() { 1.0 } else { bounds.bounding_radius().max(1e-3) };
+
+        // Emissive meshes become area lights.
+        let mut lights = Vec::new();
+        let mut mesh_light = vec![None; meshes.len()];
+        for (mi, mesh) in meshes.iter().enumerate() {
+            let Some(radiance) = mesh.emission else { continue };
+            if radiance.is_black() {
+                continue;
+            }
+            let triangles: Vec<[Vec3; 3]> = (0..mesh.indices.len()).map(|t| mesh.triangle(t)).collect();
+            let areas: Vec<f32> = triangles.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).collect();
+            let area: f32 = areas.iter().sum();
+            if !(area > 0.0) {
+                continue;
+            }
+            let normals = (!mesh.normals.is_empty())
+                .then(|| mesh.indices.iter().map(|idx| idx.map(|k| mesh.normals[k as usize])).collect());
+            mesh_light[mi] = Some(lights.len() as u32);
+            lights.push(Light::Area(AreaEmitter { mesh: mi as u32, radiance, triangles, normals, area, distribution: Distribution1D::new(&areas) }));
+        }
+        lights.append(&mut other_lights);
+        let infinite_lights = lights.iter().enumerate().filter(|(_, l)| l.is_infinite() && !l.is_delta()).map(|(i, _)| i as u32).collect();
+        let light_distribution = Distribution1D::new(&lights.iter().map(|l| l.power(radius)).collect::<Vec<_>>());
+        Ok(Scene {
+            meshes,
+            materials,
+            lights,
+            light_distribution,
+            mesh_light,
+            infinite_lights,
+            camera,
+            settings,
+            warnings,
+            accel: Box::new(bvh),
+            tri_owner,
+            bounds,
+        })
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+    /// Changes the image size, keeping the camera's field of view.
+    pub fn set_resolution(&mut self, width: usize, height: usize) {
+        self.camera = self.camera.with_resolution(width, height);
+        self.settings.width = width;
+        self.settings.height = height;
+    }
+    pub fn triangle_count(&self) -> usize {
+        self.tri_owner.len()
+    }
+
+    fn filter(&self) -> AlphaFilter<'_> {
+        AlphaFilter { meshes: &self.meshes, owner: &self.tri_owner }
+    }
+
+    pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
+        let hit = self.accel.intersect(ray, &self.filter())?;
+        let (mi, ti) = self.tri_owner[hit.prim as usize];
+        let mesh = &self.meshes[mi as usize];
+        let ti = ti as usize;
+        let (b1, b2) = (hit.b1, hit.b2);
+        let b0 = 1.0 - b1 - b2;
+        let [p0, p1, p2] = mesh.triangle(ti);
+        let p = p0 * b0 + p1 * b1 + p2 * b2;
+        let e1 = p1 - p0;
+        let e2 = p2 - p0;
+        let ng = e1.cross(e2).normalize();
+        let ns = if mesh.normals.is_empty() {
+            ng
+        } else {
+            let [n0, n1, n2] = mesh.indices[ti].map(|k| mesh.normals[k as usize]);
+            let n = n0 * b0 + n1 * b1 + n2 * b2;
+            if n.length_squared() > 0.0 { n.normalize() } else { ng }
+        };
+        let uv = mesh.uv_at(ti, b1, b2);
+        // dp/du from the uv parameterisation, for anisotropic frames and bump mapping.
+        let (dpdu, dpdv) = if mesh.uvs.is_empty() {
+            (e1, e2)
+        } else {
+            let [t0, t1, t2] = mesh.indices[ti].map(|k| mesh.uvs[k as usize]);
+            let (du1, dv1, du2, dv2) = (t1.x - t0.x, t1.y - t0.y, t2.x - t0.x, t2.y - t0.y);
+            let det = du1 * dv2 - dv1 * du2;
+            if det.abs() < 1e-12 {
+                (e1, e2)
+            } else {
+                let inv = 1.0 / det;
+                ((e1 * dv2 - e2 * dv1) * inv, (e2 * du1 - e1 * du2) * inv)
+            }
+        };
+        let mut frame = Frame::from_normal_tangent(ns, dpdu);
+        let material = mesh.material;
+        if let Some(perturb) = &self.materials[material as usize].perturbation {
+            frame = perturb.apply(&frame, dpdu, dpdv, uv);
+        }
+        let wi = -ray.d.normalize();
+        Some(SurfaceInteraction { p, t: hit.t, ng, frame, uv, wi, mesh: mi, prim: ti as u32, material })
+    }
+
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.accel.occluded(ray, &self.filter())
+    }
+
+    /// Radiance emitted by the surface towards `si.wi` (zero unless it is an emitter's front).
+    pub fn emitted(&self, si: &SurfaceInteraction) -> Rgb {
+        match self.meshes[si.mesh as usize].emission {
+            Some(l) if si.frame.n.dot(si.wi) > 0.0 => l,
+            _ => Rgb::BLACK,
+        }
+    }
+
+    /// Radiance from infinite lights along a ray that left the scene in direction `d`.
+    pub fn environment(&self, d: Vec3) -> Rgb {
+        self.infinite_lights.iter().fold(Rgb::BLACK, |acc, &i| acc + self.lights[i as usize].eval_infinite(d))
+    }
+}
+
+/// A camera that frames all meshes from the front (+z towards −z), for files without one.
+pub fn default_camera(desc: &SceneDescription) -> Camera {
+    let mut b = Aabb::EMPTY;
+    desc.meshes.iter().flat_map(|m| m.positions.iter()).for_each(|p| b.grow(*p));
+    if b.is_empty() {
+        b = Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) };
+    }
+    let c = b.center();
+    let r = b.bounding_radius().max(1e-3);
+    let fov: f32 = 45.0;
+    let dist = r / (fov.to_radians() * 0.5).sin();
+    let origin = [c.x as f64, c.y as f64, (c.z + dist) as f64];
+    let t = crate::math::Transform::look_at(origin, [c.x as f64, c.y as f64, c.z as f64], [0.0, 1.0, 0.0]).expect("valid default view");
+    let s = &desc.settings;
+    Camera::new(t, s.width, s.height, fov, crate::camera::FovAxis::X, 0.0, 0.0, 0.0)
+}
