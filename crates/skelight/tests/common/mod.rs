@@ -1,0 +1,63 @@
+//! Shared helpers for integration tests: locating `../shared`, rendering, and the
+//! statistical comparison against references described in shared/conformance/README.md.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+use skelight::eval::{block_means, relative_block_t_statistic};
+use skelight::film::Film;
+use skelight::imageio::Image;
+use skelight::integrator::{render, Integrator, RenderOptions};
+use skelight::scene::Scene;
+
+/// The project's `../shared` folder (beside the repository), which CI provides.
+pub fn shared_dir() -> PathBuf {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared");
+    assert!(p.join("conformance").exists(), "../shared/conformance not found next to the repository ({}); the tests need it", p.display());
+    p
+}
+
+pub fn render_spp(scene: &Scene, integrator: &dyn Integrator, spp: u32, seed: u64) -> Film {
+    let opts = RenderOptions { spp: Some(spp), time: None, seed, threads: 0 };
+    render(scene, integrator, &opts, None, |_, _| true).expect("render").film
+}
+
+/// Outcome of comparing two independent renders with a reference.
+#[derive(Debug)]
+pub struct Comparison {
+    /// Block-mean statistic: ≈ 1 for an unbiased estimator.
+    pub t: f64,
+    /// Per-channel z-scores of the image mean against the reference mean.
+    pub z: [f64; 3],
+    pub mean: [f64; 3],
+}
+
+/// Compares films `fa`, `fb` (independent seeds, `spp` each) with `reference` whose mean
+/// is `ref_mean` at `ref_spp` samples per pixel.
+pub fn compare(fa: &Film, fb: &Film, reference: &Image, ref_mean: [f64; 3], spp: u32, ref_spp: u32) -> Comparison {
+    let (a, b) = (fa.image(), fb.image());
+    let (va, vb) = (fa.variance_image(), fb.variance_image());
+    let t = relative_block_t_statistic(&a, &b, reference, 8);
+    let (ba, bb) = (block_means(&a, 8), block_means(&b, 8));
+    let (bva, bvb) = (block_means(&va, 8), block_means(&vb, 8));
+    let nb = ba.len() as f64;
+    let per_block = 64.0;
+    let mut z = [0.0; 3];
+    let mut mean = [0.0; 3];
+    for c in 0..3 {
+        let m: f64 = ba.iter().zip(&bb).map(|(x, y)| 0.5 * (x[c] + y[c])).sum::<f64>() / nb;
+        // Variance of the averaged render's mean, from the per-pixel sample variances.
+        let var: f64 = bva.iter().zip(&bvb).map(|(x, y)| (x[c] + y[c]) / 4.0 / per_block).sum::<f64>() / (nb * nb);
+        // The reference's own noise, scaled by its sample count.
+        let var_ref = var * (2.0 * spp as f64) / ref_spp as f64;
+        z[c] = (m - ref_mean[c]).abs() / (var + var_ref).sqrt().max(1e-12 * ref_mean[c].abs().max(1e-6));
+        mean[c] = m;
+    }
+    Comparison { t, z, mean }
+}
+
+/// T limit: the README's validation found 0.7–1.9 for Mitsuba against itself and 22 for a
+/// 6 % bias at 256 spp (a bias's excess over 1 scales with the sample count).
+pub const T_LIMIT: f64 = 3.0;
+/// z limit for 3 channels × ~20 scenes per estimator: a Gaussian exceeds 4.5 with p ≈ 7e-6.
+pub const Z_LIMIT: f64 = 4.5;

@@ -1,0 +1,67 @@
+//! Every scene in ../shared/conformance must match its Mitsuba 3 reference within Monte
+//! Carlo noise. The list is read from disk: new scenes are tested without code changes.
+
+mod common;
+
+use std::path::Path;
+
+use common::*;
+use skelight::imageio::Image;
+use skelight::integrator::by_name;
+use skelight::scene::load::load;
+
+const SPP: u32 = 128;
+
+fn manifest(dir: &Path) -> Vec<(String, [f64; 3], u32)> {
+    let text = std::fs::read_to_string(dir.join("refs/manifest.json")).expect("manifest.json");
+    // Minimal reader for {"name": {"mean": [r, g, b], ..., "spp": n}, ...}.
+    let mut out = Vec::new();
+    let mut rest = text.as_str();
+    while let Some(i) = rest.find("\"mean\"") {
+        let head = &rest[..i];
+        let name_end = head.rfind("\": {").expect("entry name");
+        let name_start = head[..name_end].rfind('"').expect("entry name") + 1;
+        let name = head[name_start..name_end].to_string();
+        let body = &rest[i..];
+        let lb = body.find('[').unwrap();
+        let rb = body.find(']').unwrap();
+        let v: Vec<f64> = body[lb + 1..rb].split(',').map(|s| s.trim().parse().unwrap()).collect();
+        let spp_at = body.find("\"spp\"").unwrap();
+        let spp: u32 = body[spp_at + 6..].trim_start_matches([':', ' ']).split(|c: char| !c.is_ascii_digit()).next().unwrap().parse().unwrap();
+        out.push((name, [v[0], v[1], v[2]], spp));
+        rest = &body[rb..];
+    }
+    out
+}
+
+/// Runs one estimator over every conformance scene and reports all failures together.
+pub fn run_conformance(integrator_name: &str) {
+    let dir = shared_dir().join("conformance");
+    let entries = manifest(&dir);
+    assert!(entries.len() >= 18, "expected the conformance manifest to list scenes");
+    let integrator = by_name(integrator_name).expect("integrator");
+    let mut failures = Vec::new();
+    for (name, ref_mean, ref_spp) in entries {
+        let scene_path = dir.join("scenes").join(format!("{name}.xml"));
+        let scene = load(&scene_path, &[]).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let reference = Image::load(&dir.join("refs").join(format!("{name}.exr"))).expect("reference");
+        let a = render_spp(&scene, integrator.as_ref(), SPP, 0x1234_5678);
+        let b = render_spp(&scene, integrator.as_ref(), SPP, 0x9E37_79B9_7F4A);
+        let c = compare(&a, &b, &reference, ref_mean, SPP, ref_spp);
+        let ok = c.t < T_LIMIT && c.z.iter().all(|z| *z < Z_LIMIT);
+        println!(
+            "{integrator_name} {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (ref {:.4} {:.4} {:.4}) {}",
+            c.t, c.z[0], c.z[1], c.z[2], c.mean[0], c.mean[1], c.mean[2], ref_mean[0], ref_mean[1], ref_mean[2],
+            if ok { "ok" } else { "FAIL" }
+        );
+        if !ok {
+            failures.push(format!("{name}: T = {:.2}, z = {:?}", c.t, c.z));
+        }
+    }
+    assert!(failures.is_empty(), "{integrator_name} disagrees with Mitsuba 3 on:\n{}", failures.join("\n"));
+}
+
+#[test]
+fn pt_matches_mitsuba_on_every_conformance_scene() {
+    run_conformance("pt");
+}
