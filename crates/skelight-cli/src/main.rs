@@ -23,10 +23,7 @@ enum Command {
     /// Render a scene (Mitsuba XML); without SCENE, the embedded two-room default scene.
     Render(RenderArgs),
     /// Error metrics between two images (MAE, RMSE, relMSE, NRMSE).
-    Diff {
-        a: PathBuf,
-        b: PathBuf,
-    },
+    Diff { a: PathBuf, b: PathBuf },
     /// Print what a scene contains and any loader warnings.
     Info {
         scene: PathBuf,
@@ -106,9 +103,13 @@ fn render(args: RenderArgs) -> Result<()> {
         }
         scene.settings.max_depth = d;
     }
-    let integrator = integrator::by_name(&args.integrator).with_context(|| format!("unknown integrator '{}'; available: {}", args.integrator, integrator::INTEGRATORS.join(", ")))?;
+    let integrator = integrator::by_name(&args.integrator).with_context(|| {
+        format!("unknown integrator '{}'; available: {}", args.integrator, integrator::INTEGRATORS.join(", "))
+    })?;
     let time = match args.time {
-        Some(t) if !(t > 0.0 && t.is_finite() && t < 1e7) => bail!("--time must be a positive number of seconds"),
+        Some(t) if !(t > 0.0 && t.is_finite() && t < 1e7) => {
+            bail!("--time must be a positive number of seconds")
+        }
         Some(t) => Some(Duration::from_secs_f64(t)),
         None => None,
     };
@@ -122,7 +123,10 @@ fn render(args: RenderArgs) -> Result<()> {
     let (w, h) = (scene.settings.width, scene.settings.height);
     eprintln!(
         "{}: {} triangles, {} lights, {}×{}, {} , max depth {}",
-        args.scene.as_deref().map(|p| p.display().to_string()).unwrap_or_else(|| "default scene (two rooms, door ajar)".into()),
+        args.scene
+            .as_deref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| "default scene (two rooms, door ajar)".into()),
         scene.triangle_count(),
         scene.lights.len(),
         w,
@@ -130,7 +134,11 @@ fn render(args: RenderArgs) -> Result<()> {
         integrator.name(),
         scene.settings.max_depth
     );
-    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(spp.map(u64::from).unwrap_or_else(|| (time.unwrap().as_secs_f64() * 10.0) as u64)) };
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(spp.map(u64::from).unwrap_or_else(|| (time.unwrap().as_secs_f64() * 10.0) as u64))
+    };
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} {msg}")
             .expect("valid template")
@@ -139,7 +147,9 @@ fn render(args: RenderArgs) -> Result<()> {
     let result = integrator::render(&scene, integrator.as_ref(), &opts, None, |p, _| {
         match (p.spp_target, p.time_budget) {
             (Some(_), None) => bar.set_position(p.spp_done as u64),
-            (_, Some(b)) => bar.set_position(((p.elapsed.as_secs_f64() / b.as_secs_f64()).min(1.0) * bar.length().unwrap_or(1) as f64) as u64),
+            (_, Some(b)) => bar.set_position(
+                ((p.elapsed.as_secs_f64() / b.as_secs_f64()).min(1.0) * bar.length().unwrap_or(1) as f64) as u64,
+            ),
             _ => {}
         }
         bar.set_message(format!("{} spp, {:.2} Msamples/s", p.spp_done, p.samples_per_second / 1e6));
@@ -174,14 +184,29 @@ fn main() {
             let ia = Image::load(&a)?;
             let ib = Image::load(&b)?;
             let m = eval::metrics(&ia, &ib)?;
-            println!("MAE {:.6e}  RMSE {:.6e}  relMSE {:.6e}  NRMSE {:.6e}  (max over RGB)", m.mae, m.rmse, m.relmse, m.nrmse);
-            println!("MAE {:.6e}  RMSE {:.6e}  relMSE {:.6e}  NRMSE {:.6e}  (luminance)", m.mae_lum, m.rmse_lum, m.relmse_lum, m.nrmse_lum);
+            println!(
+                "MAE {:.6e}  RMSE {:.6e}  relMSE {:.6e}  NRMSE {:.6e}  (max over RGB)",
+                m.mae, m.rmse, m.relmse, m.nrmse
+            );
+            println!(
+                "MAE {:.6e}  RMSE {:.6e}  relMSE {:.6e}  NRMSE {:.6e}  (luminance)",
+                m.mae_lum, m.rmse_lum, m.relmse_lum, m.nrmse_lum
+            );
             Ok(())
         })(),
         Command::Info { scene, define } => (|| {
             let s = load_scene(Some(&scene), &define)?;
-            println!("{} meshes, {} triangles, {} materials, {} lights", s.meshes.len(), s.triangle_count(), s.materials.len(), s.lights.len());
-            println!("{}×{}, {} spp, max depth {}, filter {:?}", s.settings.width, s.settings.height, s.settings.spp, s.settings.max_depth, s.settings.filter);
+            println!(
+                "{} meshes, {} triangles, {} materials, {} lights",
+                s.meshes.len(),
+                s.triangle_count(),
+                s.materials.len(),
+                s.lights.len()
+            );
+            println!(
+                "{}×{}, {} spp, max depth {}, filter {:?}",
+                s.settings.width, s.settings.height, s.settings.spp, s.settings.max_depth, s.settings.filter
+            );
             let b = s.bounds();
             println!("bounds {:?} – {:?}", b.min, b.max);
             Ok(())

@@ -16,6 +16,17 @@ pub enum FovAxis {
     Larger,
 }
 
+/// Thin-lens parameters; a zero aperture is a pinhole.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lens {
+    pub aperture_radius: f32,
+    pub focus_distance: f32,
+}
+
+impl Lens {
+    pub const PINHOLE: Lens = Lens { aperture_radius: 0.0, focus_distance: 0.0 };
+}
+
 #[derive(Clone, Debug)]
 pub struct Camera {
     pub to_world: Transform,
@@ -54,15 +65,27 @@ impl Camera {
         height: usize,
         fov_deg: f32,
         axis: FovAxis,
-        aperture_radius: f32,
-        focus_distance: f32,
+        lens: Lens,
         near_clip: f32,
     ) -> Camera {
+        let Lens { aperture_radius, focus_distance } = lens;
         let aspect = width as f32 / height as f32;
         let t = (fov_deg.to_radians() * 0.5).tan();
         let axis = match axis {
-            FovAxis::Smaller => if width <= height { FovAxis::X } else { FovAxis::Y },
-            FovAxis::Larger => if width >= height { FovAxis::X } else { FovAxis::Y },
+            FovAxis::Smaller => {
+                if width <= height {
+                    FovAxis::X
+                } else {
+                    FovAxis::Y
+                }
+            }
+            FovAxis::Larger => {
+                if width >= height {
+                    FovAxis::X
+                } else {
+                    FovAxis::Y
+                }
+            }
             a => a,
         };
         let tan_half = match axis {
@@ -75,12 +98,32 @@ impl Camera {
         };
         let position = to_world.point(Vec3::ZERO);
         let forward = to_world.vector(vec3(0.0, 0.0, 1.0)).normalize();
-        Camera { to_world, width, height, tan_half, aperture_radius, focus_distance, near_clip, position, forward, fov_deg, fov_axis: axis }
+        Camera {
+            to_world,
+            width,
+            height,
+            tan_half,
+            aperture_radius,
+            focus_distance,
+            near_clip,
+            position,
+            forward,
+            fov_deg,
+            fov_axis: axis,
+        }
     }
 
     /// The same camera for another image size (same field of view along its axis).
     pub fn with_resolution(&self, width: usize, height: usize) -> Camera {
-        Camera::new(self.to_world, width, height, self.fov_deg, self.fov_axis, self.aperture_radius, self.focus_distance, self.near_clip)
+        Camera::new(
+            self.to_world,
+            width,
+            height,
+            self.fov_deg,
+            self.fov_axis,
+            Lens { aperture_radius: self.aperture_radius, focus_distance: self.focus_distance },
+            self.near_clip,
+        )
     }
 
     fn film_area(&self) -> f32 {
@@ -187,7 +230,7 @@ mod tests {
 
     fn camera(aperture: f32) -> Camera {
         let t = Transform::look_at([0.0, 0.0, 3.9], [0.0; 3], [0.0, 1.0, 0.0]).unwrap();
-        Camera::new(t, 64, 32, 40.0, FovAxis::X, aperture, 3.6, 0.0)
+        Camera::new(t, 64, 32, 40.0, FovAxis::X, Lens { aperture_radius: aperture, focus_distance: 3.6 }, 0.0)
     }
 
     #[test]

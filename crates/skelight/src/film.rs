@@ -107,9 +107,9 @@ impl FilmTile {
                 }
                 let i = ty as usize * self.width + tx as usize;
                 let v = [l.r as f64, l.g as f64, l.b as f64];
-                for c in 0..3 {
-                    self.sum[i][c] += w as f64 * v[c];
-                    self.sum_sq[i][c] += w as f64 * v[c] * v[c];
+                for (c, vc) in v.iter().enumerate() {
+                    self.sum[i][c] += w as f64 * vc;
+                    self.sum_sq[i][c] += w as f64 * vc * vc;
                 }
                 self.weight[i] += w as f64;
             }
@@ -144,7 +144,17 @@ pub struct Film {
 impl Film {
     pub fn new(width: usize, height: usize, filter: Filter) -> Film {
         let n = width * height;
-        Film { width, height, filter, sum: vec![[0.0; 3]; n], sum_sq: vec![[0.0; 3]; n], weight: vec![0.0; n], splat: vec![[0.0; 3]; n], splat_paths: 0, rejected: 0 }
+        Film {
+            width,
+            height,
+            filter,
+            sum: vec![[0.0; 3]; n],
+            sum_sq: vec![[0.0; 3]; n],
+            weight: vec![0.0; n],
+            splat: vec![[0.0; 3]; n],
+            splat_paths: 0,
+            rejected: 0,
+        }
     }
 
     pub fn merge_tile(&mut self, tile: &FilmTile) {

@@ -31,9 +31,7 @@ impl Image {
     }
     pub fn mean(&self) -> Rgb {
         let n = self.pixels.len().max(1) as f64;
-        let s = self.pixels.iter().fold([0.0f64; 3], |a, p| {
-            [a[0] + p.r as f64, a[1] + p.g as f64, a[2] + p.b as f64]
-        });
+        let s = self.pixels.iter().fold([0.0f64; 3], |a, p| [a[0] + p.r as f64, a[1] + p.g as f64, a[2] + p.b as f64]);
         Rgb::from_array(s.map(|v| (v / n) as f32))
     }
 
@@ -92,17 +90,10 @@ impl Image {
             let c = self.pixels[p.1 * self.width + p.0];
             (c.r, c.g, c.b)
         });
-        let layer = Layer::new(
-            (self.width, self.height),
-            LayerAttributes::named("rgb"),
-            Encoding::SMALL_LOSSLESS,
-            channels,
-        );
+        let layer =
+            Layer::new((self.width, self.height), LayerAttributes::named("rgb"), Encoding::SMALL_LOSSLESS, channels);
         let image = exr::image::Image::from_layer(layer);
-        write_atomically(path, |tmp| {
-            image.write().to_file(tmp).map_err(|e| e.to_string())
-        })
-        .map_err(err)
+        write_atomically(path, |tmp| image.write().to_file(tmp).map_err(|e| e.to_string())).map_err(err)
     }
 
     /// Writes an 8-bit sRGB PNG after multiplying by `2^exposure`, atomically.
@@ -140,10 +131,7 @@ impl Image {
 }
 
 /// Runs `write` on a temporary file beside `path`, then renames it into place.
-pub fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&Path) -> Result<(), String>,
-) -> Result<(), String> {
+pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<(), String> {
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     if !dir.exists() {
         std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
@@ -202,9 +190,9 @@ mod tests {
         let back = Image::load(&png).unwrap();
         assert_eq!((back.width, back.height), (3, 2));
         // No temporary files are left behind.
-        let leftovers = std::fs::read_dir(&dir).unwrap().filter(|e| {
-            e.as_ref().unwrap().file_name().to_string_lossy().contains(".tmp")
-        });
+        let leftovers = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().contains(".tmp"));
         assert_eq!(leftovers.count(), 0);
         std::fs::remove_dir_all(&dir).ok();
     }

@@ -4,6 +4,9 @@
 //! Data flow: scene files → [`scene`] (+ [`geometry`] BVH) → estimators in [`integrator`]
 //! → [`film`] → [`eval`].
 
+// `!(x > 0.0)` is used on purpose throughout: unlike `x <= 0.0` it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod camera;
 pub mod color;
 pub mod eval;

@@ -42,7 +42,12 @@ impl EnvMap {
         for j in 0..rows {
             let theta = PI * (j as f32 + 0.5) / rows as f32;
             for i in 0..w {
-                let corners = [(i, j), ((i + 1) % w, j), (i, (j + 1).min(image.height - 1)), ((i + 1) % w, (j + 1).min(image.height - 1))];
+                let corners = [
+                    (i, j),
+                    ((i + 1) % w, j),
+                    (i, (j + 1).min(image.height - 1)),
+                    ((i + 1) % w, (j + 1).min(image.height - 1)),
+                ];
                 let m = corners.iter().map(|&(x, y)| image.get(x, y).max_component().max(0.0)).fold(0.0, f32::max);
                 weights[j * w + i] = m * theta.sin();
             }
@@ -58,9 +63,16 @@ impl EnvMap {
 
     /// Radiance arriving from world direction `d` (pointing away from the scene).
     pub fn eval(&self, d: Vec3) -> Rgb {
+        self.eval_uv(self.uv_of(d).0)
+    }
+
+    /// Lat-long coordinates of world direction `d` and sinθ. θ and sinθ come from the
+    /// horizontal component, which stays accurate next to the poles (1 − y² does not).
+    fn uv_of(&self, d: Vec3) -> (Vec2, f32) {
         let l = self.to_world.inverse().vector(d).normalize();
-        let uv = vec2(l.x.atan2(-l.z) * crate::math::INV_2PI, l.y.clamp(-1.0, 1.0).acos() * INV_PI);
-        self.eval_uv(uv)
+        let horizontal = (l.x * l.x + l.z * l.z).sqrt();
+        let uv = vec2(l.x.atan2(-l.z) * crate::math::INV_2PI, horizontal.atan2(l.y) * INV_PI);
+        (uv, horizontal)
     }
 
     fn eval_uv(&self, uv: Vec2) -> Rgb {
@@ -99,9 +111,7 @@ impl EnvMap {
     }
 
     pub fn pdf(&self, d: Vec3) -> f32 {
-        let l = self.to_world.inverse().vector(d).normalize();
-        let uv = vec2(l.x.atan2(-l.z) * crate::math::INV_2PI, l.y.clamp(-1.0, 1.0).acos() * INV_PI);
-        let sin_theta = (1.0 - l.y * l.y).max(0.0).sqrt();
+        let (uv, sin_theta) = self.uv_of(d);
         if sin_theta <= 0.0 {
             return 0.0;
         }
@@ -127,11 +137,26 @@ pub struct AreaEmitter {
 #[derive(Debug)]
 pub enum Light {
     Area(AreaEmitter),
-    Point { position: Vec3, intensity: Rgb },
-    Spot { position: Vec3, frame: Frame, intensity: Rgb, cos_cutoff: f32, cutoff: f32, beam_width: f32 },
+    Point {
+        position: Vec3,
+        intensity: Rgb,
+    },
+    Spot {
+        position: Vec3,
+        frame: Frame,
+        intensity: Rgb,
+        cos_cutoff: f32,
+        cutoff: f32,
+        beam_width: f32,
+    },
     /// Light travelling along `direction` (unit), `irradiance` on a perpendicular plane.
-    Directional { direction: Vec3, irradiance: Rgb },
-    Constant { radiance: Rgb },
+    Directional {
+        direction: Vec3,
+        irradiance: Rgb,
+    },
+    Constant {
+        radiance: Rgb,
+    },
     Env(Box<EnvMap>),
 }
 
@@ -200,7 +225,15 @@ impl Light {
                 let d = *position - p;
                 let dist2 = d.length_squared();
                 let dist = dist2.sqrt();
-                Some(LightSample { wi: d / dist, dist, radiance: *intensity / dist2, pdf: 1.0, delta: true, p: *position, n: -d / dist })
+                Some(LightSample {
+                    wi: d / dist,
+                    dist,
+                    radiance: *intensity / dist2,
+                    pdf: 1.0,
+                    delta: true,
+                    p: *position,
+                    n: -d / dist,
+                })
             }
             Light::Spot { position, frame, intensity, cos_cutoff, cutoff, beam_width } => {
                 let d = *position - p;
@@ -211,7 +244,15 @@ impl Light {
                 if f <= 0.0 {
                     return None;
                 }
-                Some(LightSample { wi, dist, radiance: *intensity * (f / dist2), pdf: 1.0, delta: true, p: *position, n: -wi })
+                Some(LightSample {
+                    wi,
+                    dist,
+                    radiance: *intensity * (f / dist2),
+                    pdf: 1.0,
+                    delta: true,
+                    p: *position,
+                    n: -wi,
+                })
             }
             Light::Directional { direction, irradiance } => Some(LightSample {
                 wi: -*direction,
@@ -224,7 +265,15 @@ impl Light {
             }),
             Light::Constant { radiance } => {
                 let wi = uniform_sphere(u);
-                Some(LightSample { wi, dist: f32::INFINITY, radiance: *radiance, pdf: UNIFORM_SPHERE_PDF, delta: false, p: p + wi * 1e30, n: -wi })
+                Some(LightSample {
+                    wi,
+                    dist: f32::INFINITY,
+                    radiance: *radiance,
+                    pdf: UNIFORM_SPHERE_PDF,
+                    delta: false,
+                    p: p + wi * 1e30,
+                    n: -wi,
+                })
             }
             Light::Env(e) => {
                 let (wi, radiance, pdf) = e.sample(u)?;
@@ -314,7 +363,10 @@ mod tests {
 
     #[test]
     fn area_light_pdf_matches_sampling() {
-        let tris = vec![[vec3(0.0, 1.0, 0.0), vec3(1.0, 1.0, 0.0), vec3(0.0, 1.0, 1.0)], [vec3(0.0, 1.0, 0.0), vec3(-2.0, 1.0, 0.0), vec3(0.0, 1.0, -1.0)]];
+        let tris = vec![
+            [vec3(0.0, 1.0, 0.0), vec3(1.0, 1.0, 0.0), vec3(0.0, 1.0, 1.0)],
+            [vec3(0.0, 1.0, 0.0), vec3(-2.0, 1.0, 0.0), vec3(0.0, 1.0, -1.0)],
+        ];
         let areas: Vec<f32> = tris.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).collect();
         let light = Light::Area(AreaEmitter {
             mesh: 0,
@@ -335,7 +387,9 @@ mod tests {
     #[test]
     fn spot_falloff_is_linear_in_angle() {
         let (cutoff, beam) = (30f32.to_radians(), 20f32.to_radians());
-        let at = |deg: f32| Light::spot_falloff(vec3(deg.to_radians().sin(), 0.0, deg.to_radians().cos()), cutoff.cos(), cutoff, beam);
+        let at = |deg: f32| {
+            Light::spot_falloff(vec3(deg.to_radians().sin(), 0.0, deg.to_radians().cos()), cutoff.cos(), cutoff, beam)
+        };
         assert_eq!(at(10.0), 1.0);
         assert!((at(25.0) - 0.5).abs() < 1e-4);
         assert_eq!(at(31.0), 0.0);

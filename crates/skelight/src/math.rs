@@ -31,11 +31,7 @@ impl Vec3 {
     }
     #[inline]
     pub fn cross(self, o: Vec3) -> Vec3 {
-        vec3(
-            self.y * o.z - self.z * o.y,
-            self.z * o.x - self.x * o.z,
-            self.x * o.y - self.y * o.x,
-        )
+        vec3(self.y * o.z - self.z * o.y, self.z * o.x - self.x * o.z, self.x * o.y - self.y * o.x)
     }
     #[inline]
     pub fn length_squared(self) -> f32 {
@@ -207,10 +203,7 @@ impl Default for Aabb {
 }
 
 impl Aabb {
-    pub const EMPTY: Aabb = Aabb {
-        min: Vec3::splat(f32::INFINITY),
-        max: Vec3::splat(f32::NEG_INFINITY),
-    };
+    pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
     #[inline]
     pub fn grow(&mut self, p: Vec3) {
         self.min = self.min.min(p);
@@ -218,10 +211,7 @@ impl Aabb {
     }
     #[inline]
     pub fn union(self, o: Aabb) -> Aabb {
-        Aabb {
-            min: self.min.min(o.min),
-            max: self.max.max(o.max),
-        }
+        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
     #[inline]
     pub fn extent(&self) -> Vec3 {
@@ -294,12 +284,8 @@ pub struct Transform {
     pub inv: [[f64; 4]; 4],
 }
 
-const IDENTITY4: [[f64; 4]; 4] = [
-    [1.0, 0.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0, 0.0],
-    [0.0, 0.0, 1.0, 0.0],
-    [0.0, 0.0, 0.0, 1.0],
-];
+const IDENTITY4: [[f64; 4]; 4] =
+    [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
 
 fn mat_mul(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
     let mut r = [[0.0; 4]; 4];
@@ -349,10 +335,7 @@ impl Default for Transform {
 }
 
 impl Transform {
-    pub const IDENTITY: Transform = Transform {
-        m: IDENTITY4,
-        inv: IDENTITY4,
-    };
+    pub const IDENTITY: Transform = Transform { m: IDENTITY4, inv: IDENTITY4 };
 
     /// From a row-major matrix; `None` when it cannot be inverted.
     pub fn from_matrix(m: [[f64; 4]; 4]) -> Option<Transform> {
@@ -396,11 +379,7 @@ impl Transform {
     pub fn look_at(origin: [f64; 3], target: [f64; 3], up: [f64; 3]) -> Option<Transform> {
         let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
         let cross = |a: [f64; 3], b: [f64; 3]| {
-            [
-                a[1] * b[2] - a[2] * b[1],
-                a[2] * b[0] - a[0] * b[2],
-                a[0] * b[1] - a[1] * b[0],
-            ]
+            [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
         };
         let norm = |a: [f64; 3]| {
             let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
@@ -423,16 +402,10 @@ impl Transform {
     }
     /// `self` applied after `first`.
     pub fn compose(&self, first: &Transform) -> Transform {
-        Transform {
-            m: mat_mul(&self.m, &first.m),
-            inv: mat_mul(&first.inv, &self.inv),
-        }
+        Transform { m: mat_mul(&self.m, &first.m), inv: mat_mul(&first.inv, &self.inv) }
     }
     pub fn inverse(&self) -> Transform {
-        Transform {
-            m: self.inv,
-            inv: self.m,
-        }
+        Transform { m: self.inv, inv: self.m }
     }
     pub fn point(&self, p: Vec3) -> Vec3 {
         let m = &self.m;
@@ -466,8 +439,7 @@ impl Transform {
     /// Whether the transform flips handedness (negative determinant of the linear part).
     pub fn flips_handedness(&self) -> bool {
         let m = &self.m;
-        let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
         det < 0.0
     }
@@ -505,9 +477,7 @@ mod tests {
 
     #[test]
     fn transform_inverse_and_rotation() {
-        let t = Transform::rotate([0.0, 1.0, 0.0], 90.0)
-            .unwrap()
-            .compose(&Transform::scale([2.0, 3.0, 4.0]).unwrap());
+        let t = Transform::rotate([0.0, 1.0, 0.0], 90.0).unwrap().compose(&Transform::scale([2.0, 3.0, 4.0]).unwrap());
         let p = vec3(1.0, 2.0, 3.0);
         let q = t.point(p);
         assert!((q - vec3(12.0, 6.0, -2.0)).length() < 1e-4, "{q:?}");

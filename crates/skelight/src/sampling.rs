@@ -24,10 +24,7 @@ impl Rng {
     pub fn new(seed: u64, a: u64, b: u64) -> Rng {
         let h1 = mix64(seed ^ mix64(a ^ mix64(b)));
         let h2 = mix64(h1 ^ 0xD1B5_4A32_D192_ED03);
-        let mut rng = Rng {
-            state: 0,
-            inc: (h2 << 1) | 1,
-        };
+        let mut rng = Rng { state: 0, inc: (h2 << 1) | 1 };
         rng.next_u32();
         rng.state = rng.state.wrapping_add(h1);
         rng.next_u32();
@@ -36,9 +33,7 @@ impl Rng {
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
-        self.state = old
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(self.inc);
+        self.state = old.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(self.inc);
         let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
         let rot = (old >> 59) as u32;
         xorshifted.rotate_right(rot)
@@ -82,11 +77,7 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     if a == 0.0 && b == 0.0 {
         return vec2(0.0, 0.0);
     }
-    let (r, phi) = if a * a > b * b {
-        (a, (PI / 4.0) * (b / a))
-    } else {
-        (b, PI / 2.0 - (PI / 4.0) * (a / b))
-    };
+    let (r, phi) = if a * a > b * b { (a, (PI / 4.0) * (b / a)) } else { (b, PI / 2.0 - (PI / 4.0) * (a / b)) };
     vec2(r * phi.cos(), r * phi.sin())
 }
 
@@ -157,10 +148,7 @@ impl Distribution1D {
     /// Negative or non-finite weights count as zero; an all-zero input becomes uniform.
     pub fn new(weights: &[f32]) -> Distribution1D {
         let n = weights.len().max(1);
-        let mut func: Vec<f32> = weights
-            .iter()
-            .map(|&w| if w.is_finite() && w > 0.0 { w } else { 0.0 })
-            .collect();
+        let mut func: Vec<f32> = weights.iter().map(|&w| if w.is_finite() && w > 0.0 { w } else { 0.0 }).collect();
         if func.is_empty() {
             func.push(0.0);
         }
@@ -183,11 +171,7 @@ impl Distribution1D {
             *c /= integral;
         }
         cdf[n] = 1.0;
-        Distribution1D {
-            func,
-            cdf,
-            integral,
-        }
+        Distribution1D { func, cdf, integral }
     }
     pub fn len(&self) -> usize {
         self.func.len()
@@ -218,11 +202,7 @@ impl Distribution1D {
             i -= 1;
         }
         let width = self.cdf[i + 1] - self.cdf[i];
-        let rem = if width > 0.0 {
-            ((u - self.cdf[i]) / width).clamp(0.0, 0.999_999_94)
-        } else {
-            0.5
-        };
+        let rem = if width > 0.0 { ((u - self.cdf[i]) / width).clamp(0.0, 0.999_999_94) } else { 0.5 };
         (i, self.pmf(i), rem)
     }
 }
@@ -238,32 +218,18 @@ pub struct Distribution2D {
 
 impl Distribution2D {
     pub fn new(weights: &[f32], width: usize, height: usize) -> Distribution2D {
-        let conditional: Vec<Distribution1D> = (0..height)
-            .map(|y| Distribution1D::new(&weights[y * width..(y + 1) * width]))
-            .collect();
+        let conditional: Vec<Distribution1D> =
+            (0..height).map(|y| Distribution1D::new(&weights[y * width..(y + 1) * width])).collect();
         let row_sums: Vec<f32> = (0..height)
-            .map(|y| {
-                weights[y * width..(y + 1) * width]
-                    .iter()
-                    .filter(|w| w.is_finite() && **w > 0.0)
-                    .sum()
-            })
+            .map(|y| weights[y * width..(y + 1) * width].iter().filter(|w| w.is_finite() && **w > 0.0).sum())
             .collect();
-        Distribution2D {
-            conditional,
-            marginal: Distribution1D::new(&row_sums),
-            width,
-            height,
-        }
+        Distribution2D { conditional, marginal: Distribution1D::new(&row_sums), width, height }
     }
     /// Returns the point in [0,1]² and its density with respect to area on [0,1]².
     pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
         let (row, p_row, v_rem) = self.marginal.sample_discrete(u.y);
         let (col, p_col, u_rem) = self.conditional[row].sample_discrete(u.x);
-        let p = vec2(
-            (col as f32 + u_rem) / self.width as f32,
-            (row as f32 + v_rem) / self.height as f32,
-        );
+        let p = vec2((col as f32 + u_rem) / self.width as f32, (row as f32 + v_rem) / self.height as f32);
         (p, p_row * p_col * (self.width * self.height) as f32)
     }
     /// Density at a point of [0,1]².

@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use crate::color::{Rgb, srgb_to_linear};
+use crate::color::{srgb_to_linear, Rgb};
 use crate::imageio::Image;
 use crate::math::{vec2, Vec2};
 
@@ -70,9 +70,8 @@ impl Bitmap {
             image.pixels.iter_mut().for_each(|p| *p = p.map(srgb_to_linear));
         }
         let n = image.pixels.len().max(1) as f64;
-        let sum = image.pixels.iter().fold([0.0f64; 3], |a, p| {
-            [a[0] + p.r as f64, a[1] + p.g as f64, a[2] + p.b as f64]
-        });
+        let sum =
+            image.pixels.iter().fold([0.0f64; 3], |a, p| [a[0] + p.r as f64, a[1] + p.g as f64, a[2] + p.b as f64]);
         let mean = Rgb::from_array(sum.map(|s| (s / n) as f32));
         Bitmap { image, filter, mean }
     }

@@ -12,6 +12,18 @@ use skelight::scene::load::load;
 
 const SPP: u32 = 128;
 
+/// References that are themselves wrong, with the evidence. These scenes are still
+/// rendered and reported, but do not fail the suite; `analytic.rs` tests the physics
+/// they get wrong against exact values instead.
+const KNOWN_REFERENCE_DEFECTS: &[(&str, &str)] = &[(
+    "c05_constant_env",
+    "Mitsuba 3.9.1 tests constant-emitter shadow rays only up to twice the radius of a scene \
+     bounding sphere that leaves out `rectangle` shapes (radius 1.18 here, while the floor \
+     spans ±4), so sky light leaks through the floor onto the raised cube and sphere. \
+     Checked with Mitsuba's own emitter sampling: 0.66 instead of the exact 0.35 on a vertical \
+     face over an unbounded floor (see analytic::vertical_face_under_sky_over_a_floor).",
+)];
+
 fn manifest(dir: &Path) -> Vec<(String, [f64; 3], u32)> {
     let text = std::fs::read_to_string(dir.join("refs/manifest.json")).expect("manifest.json");
     // Minimal reader for {"name": {"mean": [r, g, b], ..., "spp": n}, ...}.
@@ -27,7 +39,13 @@ fn manifest(dir: &Path) -> Vec<(String, [f64; 3], u32)> {
         let rb = body.find(']').unwrap();
         let v: Vec<f64> = body[lb + 1..rb].split(',').map(|s| s.trim().parse().unwrap()).collect();
         let spp_at = body.find("\"spp\"").unwrap();
-        let spp: u32 = body[spp_at + 6..].trim_start_matches([':', ' ']).split(|c: char| !c.is_ascii_digit()).next().unwrap().parse().unwrap();
+        let spp: u32 = body[spp_at + 6..]
+            .trim_start_matches([':', ' '])
+            .split(|c: char| !c.is_ascii_digit())
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
         out.push((name, [v[0], v[1], v[2]], spp));
         rest = &body[rb..];
     }
@@ -48,13 +66,18 @@ pub fn run_conformance(integrator_name: &str) {
         let a = render_spp(&scene, integrator.as_ref(), SPP, 0x1234_5678);
         let b = render_spp(&scene, integrator.as_ref(), SPP, 0x9E37_79B9_7F4A);
         let c = compare(&a, &b, &reference, ref_mean, SPP, ref_spp);
+        let defect = KNOWN_REFERENCE_DEFECTS.iter().find(|(n, _)| *n == name);
         let ok = c.t < T_LIMIT && c.z.iter().all(|z| *z < Z_LIMIT);
         println!(
             "{integrator_name} {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (ref {:.4} {:.4} {:.4}) {}",
             c.t, c.z[0], c.z[1], c.z[2], c.mean[0], c.mean[1], c.mean[2], ref_mean[0], ref_mean[1], ref_mean[2],
-            if ok { "ok" } else { "FAIL" }
+            match (ok, defect) {
+                (true, _) => "ok",
+                (false, Some(_)) => "differs (known reference defect)",
+                (false, None) => "FAIL",
+            }
         );
-        if !ok {
+        if !ok && defect.is_none() {
             failures.push(format!("{name}: T = {:.2}, z = {:?}", c.t, c.z));
         }
     }

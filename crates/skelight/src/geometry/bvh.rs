@@ -68,10 +68,8 @@ impl Bvh {
         let mut nodes = Vec::with_capacity(2 * triangles.len() / 2 + 1);
         flatten(&root, &mut nodes);
         let tris = refs.iter().map(|r| triangles[r.index as usize].v).collect();
-        let prim_ids = refs
-            .iter()
-            .map(|r| r.index | if triangles[r.index as usize].masked { MASKED_BIT } else { 0 })
-            .collect();
+        let prim_ids =
+            refs.iter().map(|r| r.index | if triangles[r.index as usize].masked { MASKED_BIT } else { 0 }).collect();
         let bounds = match &root {
             BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => *bounds,
         };
@@ -109,9 +107,7 @@ impl Bvh {
         let mut stack = [0u32; 64];
         let mut sp = 0usize;
         let mut node_index = 0usize;
-        if slab(&self.nodes[0], ray.o, pre.inv_d, tmax).is_none() {
-            return None;
-        }
+        slab(&self.nodes[0], ray.o, pre.inv_d, tmax)?;
         loop {
             let node = &self.nodes[node_index];
             if node.count > 0 {
@@ -235,10 +231,7 @@ fn split_at(refs: &mut [PrimRef], mid: usize, start: usize, bounds: Aabb) -> Bui
     let n = refs.len();
     let (left, right) = refs.split_at_mut(mid);
     let (l, r) = if n > PARALLEL_THRESHOLD {
-        rayon::join(
-            || build_recursive(left, start),
-            || build_recursive(right, start + mid),
-        )
+        rayon::join(|| build_recursive(left, start), || build_recursive(right, start + mid))
     } else {
         (build_recursive(left, start), build_recursive(right, start + mid))
     };
@@ -318,12 +311,9 @@ fn partition(refs: &mut [PrimRef], pred: impl Fn(&PrimRef) -> bool) -> usize {
 fn flatten(node: &BuildNode, out: &mut Vec<Node>) -> usize {
     let index = out.len();
     match node {
-        BuildNode::Leaf { bounds, start, count } => out.push(Node {
-            min: bounds.min,
-            offset: *start as u32,
-            max: bounds.max,
-            count: *count as u32,
-        }),
+        BuildNode::Leaf { bounds, start, count } => {
+            out.push(Node { min: bounds.min, offset: *start as u32, max: bounds.max, count: *count as u32 })
+        }
         BuildNode::Interior { bounds, children } => {
             out.push(Node { min: bounds.min, offset: 0, max: bounds.max, count: 0 });
             flatten(&children[0], out);
@@ -345,9 +335,7 @@ mod tests {
         (0..n)
             .map(|_| {
                 let c = vec3(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
-                let v = [0, 1, 2].map(|_| {
-                    c + vec3(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5)
-                });
+                let v = [0, 1, 2].map(|_| c + vec3(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5));
                 BuildTriangle { v, masked: false }
             })
             .collect()

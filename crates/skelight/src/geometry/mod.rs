@@ -6,7 +6,7 @@ mod triangle;
 pub use bvh::{Bvh, BvhStats};
 pub use triangle::{intersect_triangle, RayPrecomp};
 
-use crate::math::{Vec3, Aabb};
+use crate::math::{Aabb, Vec3};
 
 /// A ray `o + t·d`, `t` in `(0, tmax)`. `d` need not be unit length.
 #[derive(Clone, Copy, Debug)]

@@ -25,7 +25,13 @@ impl RayPrecomp {
             std::mem::swap(&mut kx, &mut ky);
         }
         let dz = ray.d[kz];
-        let inv = |v: f32| if v != 0.0 { 1.0 / v } else { f32::INFINITY.copysign(v) };
+        let inv = |v: f32| {
+            if v != 0.0 {
+                1.0 / v
+            } else {
+                f32::INFINITY.copysign(v)
+            }
+        };
         RayPrecomp {
             kx,
             ky,
@@ -40,12 +46,7 @@ impl RayPrecomp {
 
 /// Returns `(t, b1, b2)` for a hit with `0 < t < tmax`.
 #[inline]
-pub fn intersect_triangle(
-    ray: &Ray,
-    pre: &RayPrecomp,
-    v: &[Vec3; 3],
-    tmax: f32,
-) -> Option<(f32, f32, f32)> {
+pub fn intersect_triangle(ray: &Ray, pre: &RayPrecomp, v: &[Vec3; 3], tmax: f32) -> Option<(f32, f32, f32)> {
     let a = v[0] - ray.o;
     let b = v[1] - ray.o;
     let c = v[2] - ray.o;
@@ -60,8 +61,7 @@ pub fn intersect_triangle(
     let mut vv = ax * cy - ay * cx;
     if u == 0.0 || vv == 0.0 || w == 0.0 {
         // Fall back to double precision on edges so that shared edges are hit exactly once.
-        let (cxd, cyd, bxd, byd, axd, ayd) =
-            (cx as f64, cy as f64, bx as f64, by as f64, ax as f64, ay as f64);
+        let (cxd, cyd, bxd, byd, axd, ayd) = (cx as f64, cy as f64, bx as f64, by as f64, ax as f64, ay as f64);
         u = (cxd * byd - cyd * bxd) as f32;
         vv = (axd * cyd - ayd * cxd) as f32;
         w = (bxd * ayd - byd * axd) as f32;
@@ -112,10 +112,7 @@ mod tests {
             let s = i as f32 / 50.0;
             let ray = Ray::new(vec3(s, s, 1.0), vec3(0.0, 0.0, -1.0));
             let pre = RayPrecomp::new(&ray);
-            let hits = [&t1, &t2]
-                .iter()
-                .filter(|t| intersect_triangle(&ray, &pre, t, f32::INFINITY).is_some())
-                .count();
+            let hits = [&t1, &t2].iter().filter(|t| intersect_triangle(&ray, &pre, t, f32::INFINITY).is_some()).count();
             assert!(hits >= 1, "crack at {s}");
         }
     }

@@ -77,7 +77,8 @@ impl PathTracer {
                         if !f.is_black() {
                             let shadow = if ls.dist.is_finite() { si.spawn_ray_to(ls.p) } else { si.spawn_ray(ls.wi) };
                             if !scene.occluded(&shadow) {
-                                let w = if ls.delta { 1.0 } else { power_heuristic(pmf * ls.pdf, bsdf.pdf(&ctx, wi, wo)) };
+                                let w =
+                                    if ls.delta { 1.0 } else { power_heuristic(pmf * ls.pdf, bsdf.pdf(&ctx, wi, wo)) };
                                 l += beta * f * ls.radiance * (w / (pmf * ls.pdf));
                             }
                         }
@@ -88,7 +89,9 @@ impl PathTracer {
             // Continue by sampling the BSDF.
             let u = rng.next_f32();
             let u2 = rng.next_2d();
-            let Some(bs) = bsdf.sample(&ctx, wi, u, u2) else { break };
+            let Some(bs) = bsdf.sample(&ctx, wi, u, u2) else {
+                break;
+            };
             beta *= bs.weight;
             if beta.is_black() || !beta.is_finite() {
                 break;

@@ -93,7 +93,13 @@ impl RoughDielectric {
             return None;
         }
         let reflect = wi.z * wo.z > 0.0;
-        let etap = if reflect { 1.0 } else if wi.z > 0.0 { self.eta } else { 1.0 / self.eta };
+        let etap = if reflect {
+            1.0
+        } else if wi.z > 0.0 {
+            self.eta
+        } else {
+            1.0 / self.eta
+        };
         let m = wo * etap + wi;
         if m.length_squared() == 0.0 {
             return None;
@@ -110,7 +116,9 @@ impl RoughDielectric {
 
 impl BsdfModel for RoughDielectric {
     fn eval(&self, ctx: &BsdfCtx, wi: Vec3, wo: Vec3) -> Rgb {
-        let Some((m, etap, reflect)) = self.half_vector(wi, wo) else { return Rgb::BLACK };
+        let Some((m, etap, reflect)) = self.half_vector(wi, wo) else {
+            return Rgb::BLACK;
+        };
         let mf = &self.distribution;
         let f = fresnel_dielectric(wi.dot(m), self.eta);
         let d = mf.d(m);
@@ -124,7 +132,9 @@ impl BsdfModel for RoughDielectric {
         }
     }
     fn pdf(&self, _: &BsdfCtx, wi: Vec3, wo: Vec3) -> f32 {
-        let Some((m, etap, reflect)) = self.half_vector(wi, wo) else { return 0.0 };
+        let Some((m, etap, reflect)) = self.half_vector(wi, wo) else {
+            return 0.0;
+        };
         let r = fresnel_dielectric(wi.dot(m), self.eta);
         let pdf_m = self.distribution.pdf(wi, m);
         if reflect {

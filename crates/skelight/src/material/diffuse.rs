@@ -12,12 +12,7 @@ pub struct Diffuse {
 }
 
 /// Samples the cosine lobe and returns the sample weighted by `eval/pdf`.
-pub(crate) fn sample_cosine<M: BsdfModel + ?Sized>(
-    model: &M,
-    ctx: &BsdfCtx,
-    wi: Vec3,
-    u: Vec2,
-) -> Option<BsdfSample> {
+pub(crate) fn sample_cosine<M: BsdfModel + ?Sized>(model: &M, ctx: &BsdfCtx, wi: Vec3, u: Vec2) -> Option<BsdfSample> {
     if wi.z <= 0.0 {
         return None;
     }
@@ -71,11 +66,7 @@ impl BsdfModel for RoughDiffuse {
         } else {
             0.0
         };
-        let (sin_alpha, tan_beta) = if wi.z > wo.z {
-            (sin_o, sin_i / wi.z)
-        } else {
-            (sin_i, sin_o / wo.z)
-        };
+        let (sin_alpha, tan_beta) = if wi.z > wo.z { (sin_o, sin_i / wi.z) } else { (sin_i, sin_o / wo.z) };
         let on = a + b * cos_phi.max(0.0) * sin_alpha * tan_beta;
         self.reflectance.eval(ctx.uv) * (INV_PI * wo.z * on)
     }

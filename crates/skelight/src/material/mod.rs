@@ -217,10 +217,7 @@ impl Material {
     }
     /// The visible fallback for unsupported materials: magenta diffuse.
     pub fn fallback(name: impl Into<String>) -> Material {
-        Material::new(
-            name,
-            Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(crate::color::rgb(0.8, 0.0, 0.8)) }),
-        )
+        Material::new(name, Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(crate::color::rgb(0.8, 0.0, 0.8)) }))
     }
 }
 

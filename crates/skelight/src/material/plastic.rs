@@ -148,7 +148,11 @@ fn rough_interface_albedo(mf: &Microfacet, eta: f32, mu: f32, transmit: bool) ->
                 }
             } else {
                 let wo = wi.reflect(m);
-                if wo.z > 0.0 { f * mf.g1(wo, m) } else { 0.0 }
+                if wo.z > 0.0 {
+                    f * mf.g1(wo, m)
+                } else {
+                    0.0
+                }
             };
             sum += value as f64;
         }
@@ -157,14 +161,23 @@ fn rough_interface_albedo(mf: &Microfacet, eta: f32, mu: f32, transmit: bool) ->
 }
 
 impl RoughPlastic {
-    pub fn new(distribution: Microfacet, diffuse: Texture, specular: Texture, eta: f32, nonlinear: bool) -> RoughPlastic {
+    pub fn new(
+        distribution: Microfacet,
+        diffuse: Texture,
+        specular: Texture,
+        eta: f32,
+        nonlinear: bool,
+    ) -> RoughPlastic {
         let grid = |i: usize| i as f32 / (TABLE_SIZE - 1) as f32;
-        let external_transmittance = (0..TABLE_SIZE).map(|i| rough_interface_albedo(&distribution, eta, grid(i), true)).collect();
+        let external_transmittance =
+            (0..TABLE_SIZE).map(|i| rough_interface_albedo(&distribution, eta, grid(i), true)).collect();
         // Diffuse reflectance of the interface seen from inside, 2∫R(μ)μdμ, taken as twice
         // the mean over the table's grid as Mitsuba does (its value, ~1.5 % below the exact
         // integral, is part of the model the references were rendered with).
         let internal_reflectance = 2.0
-            * (0..TABLE_SIZE).map(|i| rough_interface_albedo(&distribution, 1.0 / eta, grid(i), false) * grid(i)).sum::<f32>()
+            * (0..TABLE_SIZE)
+                .map(|i| rough_interface_albedo(&distribution, 1.0 / eta, grid(i), false) * grid(i))
+                .sum::<f32>()
             / TABLE_SIZE as f32;
         RoughPlastic {
             specular_weight: specular_weight(&diffuse, &specular),

@@ -21,23 +21,48 @@ fn test_bsdfs() -> Vec<(&'static str, Bsdf)> {
         ("roughdiffuse", Bsdf::RoughDiffuse(RoughDiffuse { reflectance: white(), alpha: 0.5 })),
         (
             "roughconductor-ggx",
-            Bsdf::RoughConductor(RoughConductor { distribution: ggx, eta: mirror_k.0, k: mirror_k.1, specular_reflectance: white() }),
+            Bsdf::RoughConductor(RoughConductor {
+                distribution: ggx,
+                eta: mirror_k.0,
+                k: mirror_k.1,
+                specular_reflectance: white(),
+            }),
         ),
         (
             "roughconductor-ggx-aniso",
-            Bsdf::RoughConductor(RoughConductor { distribution: ggx_aniso, eta: rgb(0.2, 0.9, 1.1), k: rgb(3.9, 2.4, 2.1), specular_reflectance: white() }),
+            Bsdf::RoughConductor(RoughConductor {
+                distribution: ggx_aniso,
+                eta: rgb(0.2, 0.9, 1.1),
+                k: rgb(3.9, 2.4, 2.1),
+                specular_reflectance: white(),
+            }),
         ),
         (
             "roughconductor-beckmann",
-            Bsdf::RoughConductor(RoughConductor { distribution: beck, eta: mirror_k.0, k: mirror_k.1, specular_reflectance: white() }),
+            Bsdf::RoughConductor(RoughConductor {
+                distribution: beck,
+                eta: mirror_k.0,
+                k: mirror_k.1,
+                specular_reflectance: white(),
+            }),
         ),
         (
             "roughdielectric-ggx",
-            Bsdf::RoughDielectric(RoughDielectric { distribution: ggx, eta: 1.5, specular_reflectance: Rgb::WHITE, specular_transmittance: Rgb::WHITE }),
+            Bsdf::RoughDielectric(RoughDielectric {
+                distribution: ggx,
+                eta: 1.5,
+                specular_reflectance: Rgb::WHITE,
+                specular_transmittance: Rgb::WHITE,
+            }),
         ),
         (
             "roughdielectric-beckmann",
-            Bsdf::RoughDielectric(RoughDielectric { distribution: beck, eta: 1.33, specular_reflectance: Rgb::WHITE, specular_transmittance: Rgb::WHITE }),
+            Bsdf::RoughDielectric(RoughDielectric {
+                distribution: beck,
+                eta: 1.33,
+                specular_reflectance: Rgb::WHITE,
+                specular_transmittance: Rgb::WHITE,
+            }),
         ),
         ("plastic", Bsdf::Plastic(Plastic::new(Texture::constant(0.8), white(), 1.5, false))),
         ("roughplastic", Bsdf::RoughPlastic(RoughPlastic::new(ggx, Texture::constant(0.8), white(), 1.5, true))),
@@ -79,16 +104,26 @@ fn sampling_weights_and_densities_agree_with_eval() {
         for wi in incident_directions(&bsdf) {
             let mut rng = Rng::new(17, 0, 0);
             for _ in 0..5000 {
-                let Some(s) = bsdf.sample(&CTX, wi, rng.next_f32(), rng.next_2d()) else { continue };
+                let Some(s) = bsdf.sample(&CTX, wi, rng.next_f32(), rng.next_2d()) else {
+                    continue;
+                };
                 assert!(s.weight.is_finite() && s.pdf > 0.0, "{name}: {s:?}");
                 if s.delta {
                     continue;
                 }
                 let pdf = bsdf.pdf(&CTX, wi, s.wo);
-                assert!((pdf - s.pdf).abs() <= 1e-3 * pdf.max(s.pdf) + 1e-6, "{name} wi={wi:?}: pdf {pdf} vs sampled {}", s.pdf);
+                assert!(
+                    (pdf - s.pdf).abs() <= 1e-3 * pdf.max(s.pdf) + 1e-6,
+                    "{name} wi={wi:?}: pdf {pdf} vs sampled {}",
+                    s.pdf
+                );
                 let expect = bsdf.eval(&CTX, wi, s.wo) / s.pdf;
                 let err = (expect - s.weight).map(f32::abs).max_component();
-                assert!(err <= 2e-3 * expect.max_component().max(1.0), "{name} wi={wi:?}: weight {:?} vs eval/pdf {expect:?}", s.weight);
+                assert!(
+                    err <= 2e-3 * expect.max_component().max(1.0),
+                    "{name} wi={wi:?}: weight {:?} vs eval/pdf {expect:?}",
+                    s.weight
+                );
             }
         }
     }
@@ -128,7 +163,8 @@ fn sampled_directions_follow_the_pdf_chi_square() {
                         for b in 0..SUB {
                             let theta = std::f64::consts::PI * (iz as f64 + (a as f64 + 0.5) / SUB as f64) / NZ as f64;
                             let z = theta.cos();
-                            let phi = -PI as f64 + 2.0 * PI as f64 * (ip as f64 + (b as f64 + 0.5) / SUB as f64) / NPHI as f64;
+                            let phi = -PI as f64
+                                + 2.0 * PI as f64 * (ip as f64 + (b as f64 + 0.5) / SUB as f64) / NPHI as f64;
                             let r = (1.0 - z * z).max(0.0).sqrt();
                             let wo = vec3((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
                             acc += bsdf.pdf(&CTX, wi, wo) as f64 * cell * theta.sin();
@@ -167,8 +203,18 @@ fn sampled_directions_follow_the_pdf_chi_square() {
 fn white_furnace_energy_conservation() {
     let mut list = test_bsdfs();
     list.push(("mirror", Bsdf::Conductor(Conductor { eta: Rgb::BLACK, k: Rgb::WHITE, specular_reflectance: white() })));
-    list.push(("glass", Bsdf::Dielectric(Dielectric { eta: 1.5, specular_reflectance: Rgb::WHITE, specular_transmittance: Rgb::WHITE })));
-    list.push(("thin", Bsdf::ThinDielectric(ThinDielectric { eta: 1.5, specular_reflectance: Rgb::WHITE, specular_transmittance: Rgb::WHITE })));
+    list.push((
+        "glass",
+        Bsdf::Dielectric(Dielectric { eta: 1.5, specular_reflectance: Rgb::WHITE, specular_transmittance: Rgb::WHITE }),
+    ));
+    list.push((
+        "thin",
+        Bsdf::ThinDielectric(ThinDielectric {
+            eta: 1.5,
+            specular_reflectance: Rgb::WHITE,
+            specular_transmittance: Rgb::WHITE,
+        }),
+    ));
     let ctx = BsdfCtx { mode: TransportMode::Importance, ..CTX };
     for (name, bsdf) in list {
         for wi in incident_directions(&bsdf) {
@@ -192,4 +238,3 @@ fn white_furnace_energy_conservation() {
         }
     }
 }
-

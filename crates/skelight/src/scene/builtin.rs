@@ -4,7 +4,7 @@
 
 use super::shapes;
 use super::{Mesh, RenderSettings, Scene, SceneDescription};
-use crate::camera::{Camera, FovAxis};
+use crate::camera::{Camera, FovAxis, Lens};
 use crate::color::{rgb, Rgb};
 use crate::film::Filter;
 use crate::material::{Bsdf, Diffuse, Material};
@@ -28,7 +28,8 @@ fn block(min: Vec3, max: Vec3, material: u32, turn: Option<(Vec3, f64)>) -> Mesh
 }
 
 pub fn two_rooms_description() -> SceneDescription {
-    let diffuse = |name: &str, c: Rgb| Material::new(name, Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(c) }));
+    let diffuse =
+        |name: &str, c: Rgb| Material::new(name, Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(c) }));
     let materials = vec![
         diffuse("walls", Rgb::splat(0.72)),
         diffuse("floor", rgb(0.55, 0.38, 0.22)),
@@ -63,9 +64,17 @@ pub fn two_rooms_description() -> SceneDescription {
     light.material = lamp;
     light.emission = Some(rgb(120.0, 108.0, 90.0));
     meshes.push(light);
-    let settings = RenderSettings { width: 320, height: 240, filter: Filter::Box, spp: 16, max_depth: 8, rr_depth: 5, integrator: "path".into() };
+    let settings = RenderSettings {
+        width: 320,
+        height: 240,
+        filter: Filter::Box,
+        spp: 16,
+        max_depth: 8,
+        rr_depth: 5,
+        integrator: "path".into(),
+    };
     let view = Transform::look_at([0.5, 1.4, 3.6], [4.1, 1.0, 1.9], [0.0, 1.0, 0.0]).expect("valid view");
-    let camera = Camera::new(view, settings.width, settings.height, 62.0, FovAxis::X, 0.0, 0.0, 0.0);
+    let camera = Camera::new(view, settings.width, settings.height, 62.0, FovAxis::X, Lens::PINHOLE, 0.0);
     SceneDescription { meshes, materials, lights: Vec::new(), camera: Some(camera), settings, warnings: Vec::new() }
 }
 

@@ -8,7 +8,7 @@ pub mod shapes;
 use crate::camera::Camera;
 use crate::color::Rgb;
 use crate::film::Filter;
-use crate::geometry::{offset_origin, Accelerator, Bvh, BuildTriangle, HitFilter, Ray};
+use crate::geometry::{offset_origin, Accelerator, BuildTriangle, Bvh, HitFilter, Ray};
 use crate::light::{AreaEmitter, Light};
 use crate::material::Material;
 use crate::math::{vec2, Aabb, Frame, Vec2, Vec3};
@@ -62,7 +62,15 @@ pub struct RenderSettings {
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        RenderSettings { width: 768, height: 576, filter: Filter::Gaussian { stddev: 0.5 }, spp: 64, max_depth: -1, rr_depth: 5, integrator: "path".into() }
+        RenderSettings {
+            width: 768,
+            height: 576,
+            filter: Filter::Gaussian { stddev: 0.5 },
+            spp: 64,
+            max_depth: -1,
+            rr_depth: 5,
+            integrator: "path".into(),
+        }
     }
 }
 
@@ -147,7 +155,9 @@ impl HitFilter for AlphaFilter<'_> {
     fn accept(&self, ray: &Ray, prim: u32, b1: f32, b2: f32) -> bool {
         let (m, t) = self.owner[prim as usize];
         let mesh = &self.meshes[m as usize];
-        let Some(alpha) = &mesh.alpha else { return true };
+        let Some(alpha) = &mesh.alpha else {
+            return true;
+        };
         let a = alpha.eval_scalar(mesh.uv_at(t as usize, b1, b2));
         if a >= 1.0 {
             return true;
@@ -156,7 +166,9 @@ impl HitFilter for AlphaFilter<'_> {
             return false;
         }
         let h = mix64(
-            (ray.o.x.to_bits() as u64) ^ ((ray.o.y.to_bits() as u64) << 21) ^ ((ray.o.z.to_bits() as u64) << 42)
+            (ray.o.x.to_bits() as u64)
+                ^ ((ray.o.y.to_bits() as u64) << 21)
+                ^ ((ray.o.z.to_bits() as u64) << 42)
                 ^ mix64((ray.d.x.to_bits() as u64) ^ ((ray.d.y.to_bits() as u64) << 32) ^ prim as u64)
                 ^ (ray.d.z.to_bits() as u64).rotate_left(17),
         );
@@ -189,7 +201,10 @@ impl Scene {
             }
             for (ti, idx) in mesh.indices.iter().enumerate() {
                 if idx.iter().any(|&k| k as usize >= mesh.positions.len()) {
-                    return Err(bad(format!("triangle {ti} refers to a vertex beyond the {} given", mesh.positions.len())));
+                    return Err(bad(format!(
+                        "triangle {ti} refers to a vertex beyond the {} given",
+                        mesh.positions.len()
+                    )));
                 }
                 tris.push(BuildTriangle { v: mesh.triangle(ti), masked: mesh.alpha.is_some() });
                 tri_owner.push((mi as u32, ti as u32));
@@ -206,7 +221,9 @@ impl Scene {
         let mut lights = Vec::new();
         let mut mesh_light = vec![None; meshes.len()];
         for (mi, mesh) in meshes.iter().enumerate() {
-            let Some(radiance) = mesh.emission else { continue };
+            let Some(radiance) = mesh.emission else {
+                continue;
+            };
             if radiance.is_black() {
                 continue;
             }
@@ -219,10 +236,22 @@ impl Scene {
             let normals = (!mesh.normals.is_empty())
                 .then(|| mesh.indices.iter().map(|idx| idx.map(|k| mesh.normals[k as usize])).collect());
             mesh_light[mi] = Some(lights.len() as u32);
-            lights.push(Light::Area(AreaEmitter { mesh: mi as u32, radiance, triangles, normals, area, distribution: Distribution1D::new(&areas) }));
+            lights.push(Light::Area(AreaEmitter {
+                mesh: mi as u32,
+                radiance,
+                triangles,
+                normals,
+                area,
+                distribution: Distribution1D::new(&areas),
+            }));
         }
         lights.append(&mut other_lights);
-        let infinite_lights = lights.iter().enumerate().filter(|(_, l)| l.is_infinite() && !l.is_delta()).map(|(i, _)| i as u32).collect();
+        let infinite_lights = lights
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l.is_infinite() && !l.is_delta())
+            .map(|(i, _)| i as u32)
+            .collect();
         let light_distribution = Distribution1D::new(&lights.iter().map(|l| l.power(radius)).collect::<Vec<_>>());
         Ok(Scene {
             meshes,
@@ -274,7 +303,11 @@ impl Scene {
         } else {
             let [n0, n1, n2] = mesh.indices[ti].map(|k| mesh.normals[k as usize]);
             let n = n0 * b0 + n1 * b1 + n2 * b2;
-            if n.length_squared() > 0.0 { n.normalize() } else { ng }
+            if n.length_squared() > 0.0 {
+                n.normalize()
+            } else {
+                ng
+            }
         };
         let uv = mesh.uv_at(ti, b1, b2);
         // dp/du from the uv parameterisation, for anisotropic frames and bump mapping.
@@ -330,7 +363,8 @@ pub fn default_camera(desc: &SceneDescription) -> Camera {
     let fov: f32 = 45.0;
     let dist = r / (fov.to_radians() * 0.5).sin();
     let origin = [c.x as f64, c.y as f64, (c.z + dist) as f64];
-    let t = crate::math::Transform::look_at(origin, [c.x as f64, c.y as f64, c.z as f64], [0.0, 1.0, 0.0]).expect("valid default view");
+    let t = crate::math::Transform::look_at(origin, [c.x as f64, c.y as f64, c.z as f64], [0.0, 1.0, 0.0])
+        .expect("valid default view");
     let s = &desc.settings;
-    Camera::new(t, s.width, s.height, fov, crate::camera::FovAxis::X, 0.0, 0.0, 0.0)
+    Camera::new(t, s.width, s.height, fov, crate::camera::FovAxis::X, crate::camera::Lens::PINHOLE, 0.0)
 }

@@ -13,7 +13,11 @@ use skelight::scene::Scene;
 /// The project's `../shared` folder (beside the repository), which CI provides.
 pub fn shared_dir() -> PathBuf {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared");
-    assert!(p.join("conformance").exists(), "../shared/conformance not found next to the repository ({}); the tests need it", p.display());
+    assert!(
+        p.join("conformance").exists(),
+        "../shared/conformance not found next to the repository ({}); the tests need it",
+        p.display()
+    );
     p
 }
 

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use roxmltree::{Document, Node};
 
 use super::{confined_path, LoadError};
-use crate::camera::{Camera, FovAxis};
+use crate::camera::{Camera, FovAxis, Lens};
 use crate::color::{rgb, srgb_to_linear, Rgb};
 use crate::film::Filter;
 use crate::imageio::Image;
@@ -57,7 +57,8 @@ pub struct Loader {
     materials: HashMap<String, MaterialRef>,
     textures: HashMap<String, Texture>,
     bitmaps: std::cell::RefCell<HashMap<(PathBuf, bool, bool), Arc<Bitmap>>>,
-    default_material: Option<u32>,
+    /// Shared default materials: [non-emitters, emitters].
+    default_materials: [Option<u32>; 2],
     desc: SceneDescription,
     /// File being parsed (for error messages) and its text (for line numbers).
     file: PathBuf,
@@ -76,7 +77,7 @@ impl Loader {
             materials: HashMap::new(),
             textures: HashMap::new(),
             bitmaps: Default::default(),
-            default_material: None,
+            default_materials: [None; 2],
             desc: SceneDescription::default(),
             file: PathBuf::new(),
             fov: (45.0, FovAxis::X),
@@ -110,7 +111,9 @@ impl Loader {
         let saved = std::mem::replace(&mut self.file, path.to_path_buf());
         let root = doc.root_element();
         if root.tag_name().name() != "scene" {
-            return Err(self.err(root, format!("expected <scene> as the root element, found <{}>", root.tag_name().name())));
+            return Err(
+                self.err(root, format!("expected <scene> as the root element, found <{}>", root.tag_name().name()))
+            );
         }
         if top {
             if let Some(v) = root.attribute("version") {
@@ -166,7 +169,9 @@ impl Loader {
 
     /// Attribute value with `$name` substitution.
     fn attr(&self, n: Node, key: &str) -> R<Option<String>> {
-        let Some(raw) = n.attribute(key) else { return Ok(None) };
+        let Some(raw) = n.attribute(key) else {
+            return Ok(None);
+        };
         if !raw.contains('$') {
             return Ok(Some(raw.to_string()));
         }
@@ -177,7 +182,9 @@ impl Loader {
             let tail = &rest[i + 1..];
             let end = tail.find(|c: char| !(c.is_alphanumeric() || c == '_')).unwrap_or(tail.len());
             let name = &tail[..end];
-            let value = self.overrides.get(name).or_else(|| self.defines.get(name)).ok_or_else(|| self.err(n, format!("undefined parameter ${name} (add <default name=\"{name}\" …/> or -D {name}=…)")))?;
+            let value = self.overrides.get(name).or_else(|| self.defines.get(name)).ok_or_else(|| {
+                self.err(n, format!("undefined parameter ${name} (add <default name=\"{name}\" …/> or -D {name}=…)"))
+            })?;
             out.push_str(value);
             rest = &tail[end..];
         }
@@ -188,7 +195,8 @@ impl Loader {
     /// The child element carrying parameter `name`.
     fn prop<'a, 'i>(&self, n: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
         let want = normalize_name(name);
-        n.children().find(|c| c.is_element() && c.attribute("name").map(normalize_name).as_deref() == Some(want.as_str()))
+        n.children()
+            .find(|c| c.is_element() && c.attribute("name").map(normalize_name).as_deref() == Some(want.as_str()))
     }
 
     fn numbers(&self, n: Node, s: &str) -> R<Vec<f32>> {
@@ -199,7 +207,9 @@ impl Loader {
     }
 
     fn float(&self, n: Node, name: &str, default: f32) -> R<f32> {
-        let Some(p) = self.prop(n, name) else { return Ok(default) };
+        let Some(p) = self.prop(n, name) else {
+            return Ok(default);
+        };
         let v = self.attr(p, "value")?.ok_or_else(|| self.err(p, format!("'{name}' needs a value")))?;
         // Mitsuba accepts names of materials for indices of refraction.
         if let Some(ior) = named_ior(&v) {
@@ -213,13 +223,17 @@ impl Loader {
     }
 
     fn int(&self, n: Node, name: &str, default: i64) -> R<i64> {
-        let Some(p) = self.prop(n, name) else { return Ok(default) };
+        let Some(p) = self.prop(n, name) else {
+            return Ok(default);
+        };
         let v = self.attr(p, "value")?.ok_or_else(|| self.err(p, format!("'{name}' needs a value")))?;
         v.trim().parse().map_err(|_| self.err(p, format!("'{name}': '{v}' is not an integer")))
     }
 
     fn boolean(&self, n: Node, name: &str, default: bool) -> R<bool> {
-        let Some(p) = self.prop(n, name) else { return Ok(default) };
+        let Some(p) = self.prop(n, name) else {
+            return Ok(default);
+        };
         match self.attr(p, "value")?.as_deref().map(str::trim) {
             Some("true") | Some("1") => Ok(true),
             Some("false") | Some("0") => Ok(false),
@@ -240,7 +254,8 @@ impl Loader {
         let v = self.attr(p, "value")?.ok_or_else(|| self.err(p, "colour needs a value"))?;
         if tag == "spectrum" && v.contains(':') {
             // Sampled spectrum "λ:v, …": its mean is the grey it looks like.
-            let vals: Vec<f32> = v.split(',').filter_map(|e| e.split(':').nth(1)).filter_map(|x| x.trim().parse().ok()).collect();
+            let vals: Vec<f32> =
+                v.split(',').filter_map(|e| e.split(':').nth(1)).filter_map(|x| x.trim().parse().ok()).collect();
             if vals.is_empty() {
                 return Err(self.err(p, "empty spectrum"));
             }
@@ -277,7 +292,14 @@ impl Loader {
                 _ => Err(self.err(p, "expected 3 values")),
             };
         }
-        let c = |k: &str| -> R<f32> { Ok(self.attr(p, k)?.map(|s| s.trim().parse::<f32>()).transpose().map_err(|_| self.err(p, format!("bad '{k}'")))?.unwrap_or(0.0)) };
+        let c = |k: &str| -> R<f32> {
+            Ok(self
+                .attr(p, k)?
+                .map(|s| s.trim().parse::<f32>())
+                .transpose()
+                .map_err(|_| self.err(p, format!("bad '{k}'")))?
+                .unwrap_or(0.0))
+        };
         Ok(vec3(c("x")?, c("y")?, c("z")?))
     }
 
@@ -289,7 +311,9 @@ impl Loader {
     }
 
     fn transform(&self, n: Node, name: &str) -> R<Transform> {
-        let Some(t) = self.prop(n, name) else { return Ok(Transform::IDENTITY) };
+        let Some(t) = self.prop(n, name) else {
+            return Ok(Transform::IDENTITY);
+        };
         let mut acc = Transform::IDENTITY;
         for op in t.children().filter(|c| c.is_element()) {
             let xyz = |default: f64| -> R<[f64; 3]> {
@@ -301,11 +325,20 @@ impl Loader {
                         _ => Err(self.err(op, "expected 1 or 3 values")),
                     };
                 }
-                let c = |k: &str| -> R<f64> { Ok(self.attr(op, k)?.map(|s| s.trim().parse::<f64>()).transpose().map_err(|_| self.err(op, format!("bad '{k}'")))?.unwrap_or(default)) };
+                let c = |k: &str| -> R<f64> {
+                    Ok(self
+                        .attr(op, k)?
+                        .map(|s| s.trim().parse::<f64>())
+                        .transpose()
+                        .map_err(|_| self.err(op, format!("bad '{k}'")))?
+                        .unwrap_or(default))
+                };
                 Ok([c("x")?, c("y")?, c("z")?])
             };
             let vec_attr = |k: &str| -> R<Option<[f64; 3]>> {
-                let Some(v) = self.attr(op, k)? else { return Ok(None) };
+                let Some(v) = self.attr(op, k)? else {
+                    return Ok(None);
+                };
                 let xs = self.numbers(op, &v)?;
                 if xs.len() != 3 {
                     return Err(self.err(op, format!("'{k}' needs 3 values")));
@@ -318,7 +351,12 @@ impl Loader {
                 "scale" => Transform::scale(xyz(1.0)?).ok_or_else(singular)?,
                 "rotate" => {
                     let axis = xyz(0.0)?;
-                    let angle: f64 = self.attr(op, "angle")?.ok_or_else(|| self.err(op, "rotate needs an angle"))?.trim().parse().map_err(|_| self.err(op, "bad angle"))?;
+                    let angle: f64 = self
+                        .attr(op, "angle")?
+                        .ok_or_else(|| self.err(op, "rotate needs an angle"))?
+                        .trim()
+                        .parse()
+                        .map_err(|_| self.err(op, "bad angle"))?;
                     Transform::rotate(axis, angle).ok_or_else(|| self.err(op, "rotation axis is zero"))?
                 }
                 "matrix" => {
@@ -347,7 +385,8 @@ impl Loader {
                             [f.t.x as f64, f.t.y as f64, f.t.z as f64]
                         }
                     };
-                    Transform::look_at(origin, target, up).ok_or_else(|| self.err(op, "lookat: origin equals target or up is parallel to the view"))?
+                    Transform::look_at(origin, target, up)
+                        .ok_or_else(|| self.err(op, "lookat: origin equals target or up is parallel to the view"))?
                 }
                 other => return Err(self.err(op, format!("unknown transform operation <{other}>"))),
             };
@@ -378,7 +417,9 @@ impl Loader {
 
     /// Parameter `name` as a texture: a constant, a nested <texture>, or a <ref>.
     fn texture(&self, n: Node, name: &str, default: Rgb) -> R<Texture> {
-        let Some(p) = self.prop(n, name) else { return Ok(Texture::Constant(default)) };
+        let Some(p) = self.prop(n, name) else {
+            return Ok(Texture::Constant(default));
+        };
         match p.tag_name().name() {
             "texture" => self.texture_node(p),
             "ref" => {
@@ -393,10 +434,17 @@ impl Loader {
         if self.prop(n, "to_uv").is_some() {
             let t = self.transform(n, "to_uv")?;
             let m = t.m;
-            return Ok(UvTransform { m: [m[0][0] as f32, m[0][1] as f32, m[0][3] as f32, m[1][0] as f32, m[1][1] as f32, m[1][3] as f32] });
+            return Ok(UvTransform {
+                m: [m[0][0] as f32, m[0][1] as f32, m[0][3] as f32, m[1][0] as f32, m[1][1] as f32, m[1][3] as f32],
+            });
         }
         let s = self.float(n, "uvscale", 1.0)?;
-        Ok(UvTransform::scale_offset(self.float(n, "uscale", s)?, self.float(n, "vscale", s)?, self.float(n, "uoffset", 0.0)?, self.float(n, "voffset", 0.0)?))
+        Ok(UvTransform::scale_offset(
+            self.float(n, "uscale", s)?,
+            self.float(n, "vscale", s)?,
+            self.float(n, "uoffset", 0.0)?,
+            self.float(n, "voffset", 0.0)?,
+        ))
     }
 
     fn texture_node(&self, t: Node) -> R<Texture> {
@@ -416,12 +464,17 @@ impl Loader {
                 to_uv: self.uv_transform(t)?,
             }),
             "scale" => {
-                let inner = t.children().find(|c| c.is_element() && (c.tag_name().name() == "texture" || c.tag_name().name() == "ref"));
+                let inner = t
+                    .children()
+                    .find(|c| c.is_element() && (c.tag_name().name() == "texture" || c.tag_name().name() == "ref"));
                 let inner = match inner {
                     Some(c) if c.tag_name().name() == "texture" => self.texture_node(c)?,
                     Some(c) => {
                         let id = self.attr(c, "id")?.unwrap_or_default();
-                        self.textures.get(&id).cloned().ok_or_else(|| self.err(c, format!("no texture with id '{id}'")))?
+                        self.textures
+                            .get(&id)
+                            .cloned()
+                            .ok_or_else(|| self.err(c, format!("no texture with id '{id}'")))?
                     }
                     None => return Err(self.err(t, "scale texture needs a nested texture")),
                 };
@@ -455,7 +508,13 @@ impl Loader {
     }
 
     fn nested_bsdfs<'a, 'i>(&self, n: Node<'a, 'i>) -> Vec<Node<'a, 'i>> {
-        n.children().filter(|c| c.is_element() && (c.tag_name().name() == "bsdf" || (c.tag_name().name() == "ref" && c.attribute("name").is_none_or(|nm| nm.contains("bsdf"))))).collect()
+        n.children()
+            .filter(|c| {
+                c.is_element()
+                    && (c.tag_name().name() == "bsdf"
+                        || (c.tag_name().name() == "ref" && c.attribute("name").is_none_or(|nm| nm.contains("bsdf"))))
+            })
+            .collect()
     }
 
     fn nested(&mut self, n: Node, k: usize) -> R<Parsed> {
@@ -478,7 +537,9 @@ impl Loader {
         };
         let scalar = |name: &str, d: f32| -> R<f32> {
             match self.prop(n, name) {
-                Some(p) if p.tag_name().name() == "texture" || p.tag_name().name() == "ref" => Ok(self.texture(n, name, Rgb::splat(d))?.mean().mean()),
+                Some(p) if p.tag_name().name() == "texture" || p.tag_name().name() == "ref" => {
+                    Ok(self.texture(n, name, Rgb::splat(d))?.mean().mean())
+                }
                 _ => self.float(n, name, d),
             }
         };
@@ -508,29 +569,79 @@ impl Loader {
         let ty = self.attr(n, "type")?.unwrap_or_default();
         let plain = |bsdf: Bsdf| Ok(Parsed { bsdf, perturbation: None, alpha: None });
         match ty.as_str() {
-            "diffuse" | "lambertian" => plain(Bsdf::Diffuse(Diffuse { reflectance: self.texture(n, "reflectance", Rgb::splat(0.5))? })),
-            "roughdiffuse" => plain(Bsdf::RoughDiffuse(RoughDiffuse { reflectance: self.texture(n, "reflectance", Rgb::splat(0.5))?, alpha: self.float(n, "alpha", 0.2)? })),
+            "diffuse" | "lambertian" => {
+                plain(Bsdf::Diffuse(Diffuse { reflectance: self.texture(n, "reflectance", Rgb::splat(0.5))? }))
+            }
+            "roughdiffuse" => plain(Bsdf::RoughDiffuse(RoughDiffuse {
+                reflectance: self.texture(n, "reflectance", Rgb::splat(0.5))?,
+                alpha: self.float(n, "alpha", 0.2)?,
+            })),
             "conductor" => {
                 let (eta, k) = self.conductor_ior(n)?;
-                plain(Bsdf::Conductor(Conductor { eta, k, specular_reflectance: self.texture(n, "specular_reflectance", Rgb::WHITE)? }))
+                plain(Bsdf::Conductor(Conductor {
+                    eta,
+                    k,
+                    specular_reflectance: self.texture(n, "specular_reflectance", Rgb::WHITE)?,
+                }))
             }
             "roughconductor" => {
                 let (eta, k) = self.conductor_ior(n)?;
-                plain(Bsdf::RoughConductor(RoughConductor { distribution: self.distribution(n)?, eta, k, specular_reflectance: self.texture(n, "specular_reflectance", Rgb::WHITE)? }))
+                plain(Bsdf::RoughConductor(RoughConductor {
+                    distribution: self.distribution(n)?,
+                    eta,
+                    k,
+                    specular_reflectance: self.texture(n, "specular_reflectance", Rgb::WHITE)?,
+                }))
             }
-            "dielectric" => plain(Bsdf::Dielectric(Dielectric { eta: self.eta(n, 1.5046)?, specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?, specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)? })),
-            "thindielectric" => plain(Bsdf::ThinDielectric(ThinDielectric { eta: self.eta(n, 1.5046)?, specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?, specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)? })),
-            "roughdielectric" => plain(Bsdf::RoughDielectric(RoughDielectric { distribution: self.distribution(n)?, eta: self.eta(n, 1.5046)?, specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?, specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)? })),
-            "plastic" => plain(Bsdf::Plastic(Plastic::new(self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?, self.texture(n, "specular_reflectance", Rgb::WHITE)?, self.eta(n, 1.49)?, self.boolean(n, "nonlinear", false)?))),
-            "roughplastic" => plain(Bsdf::RoughPlastic(RoughPlastic::new(self.distribution(n)?, self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?, self.texture(n, "specular_reflectance", Rgb::WHITE)?, self.eta(n, 1.49)?, self.boolean(n, "nonlinear", false)?))),
-            "phong" => plain(Bsdf::Phong(Phong::new(self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?, self.texture(n, "specular_reflectance", Rgb::splat(0.2))?, self.float(n, "exponent", 30.0)?))),
+            "dielectric" => plain(Bsdf::Dielectric(Dielectric {
+                eta: self.eta(n, 1.5046)?,
+                specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?,
+                specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)?,
+            })),
+            "thindielectric" => plain(Bsdf::ThinDielectric(ThinDielectric {
+                eta: self.eta(n, 1.5046)?,
+                specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?,
+                specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)?,
+            })),
+            "roughdielectric" => plain(Bsdf::RoughDielectric(RoughDielectric {
+                distribution: self.distribution(n)?,
+                eta: self.eta(n, 1.5046)?,
+                specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?,
+                specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)?,
+            })),
+            "plastic" => plain(Bsdf::Plastic(Plastic::new(
+                self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?,
+                self.texture(n, "specular_reflectance", Rgb::WHITE)?,
+                self.eta(n, 1.49)?,
+                self.boolean(n, "nonlinear", false)?,
+            ))),
+            "roughplastic" => plain(Bsdf::RoughPlastic(RoughPlastic::new(
+                self.distribution(n)?,
+                self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?,
+                self.texture(n, "specular_reflectance", Rgb::WHITE)?,
+                self.eta(n, 1.49)?,
+                self.boolean(n, "nonlinear", false)?,
+            ))),
+            "phong" => plain(Bsdf::Phong(Phong::new(
+                self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?,
+                self.texture(n, "specular_reflectance", Rgb::splat(0.2))?,
+                self.float(n, "exponent", 30.0)?,
+            ))),
             "coating" | "roughcoating" => {
                 if ty == "roughcoating" {
                     self.warn(format!("{}: roughcoating is rendered as a smooth coating", self.file.display()));
                 }
                 let inner = self.nested(n, 0)?;
                 let sigma = self.color(n, "sigma_a", Rgb::BLACK)? * self.float(n, "thickness", 1.0)?;
-                Ok(Parsed { bsdf: Bsdf::Coating(Coating::new(self.eta(n, 1.5046)?, self.color(n, "specular_reflectance", Rgb::WHITE)?, sigma, inner.bsdf)), ..inner })
+                Ok(Parsed {
+                    bsdf: Bsdf::Coating(Coating::new(
+                        self.eta(n, 1.5046)?,
+                        self.color(n, "specular_reflectance", Rgb::WHITE)?,
+                        sigma,
+                        inner.bsdf,
+                    )),
+                    ..inner
+                })
             }
             "twosided" => {
                 let front = self.nested(n, 0)?;
@@ -543,7 +654,10 @@ impl Loader {
                 Ok(Parsed { alpha: Some(opacity), ..inner })
             }
             "bump" | "bumpmap" => {
-                let tex = n.children().find(|c| c.is_element() && c.tag_name().name() == "texture").ok_or_else(|| self.err(n, "bump needs a <texture>"))?;
+                let tex = n
+                    .children()
+                    .find(|c| c.is_element() && c.tag_name().name() == "texture")
+                    .ok_or_else(|| self.err(n, "bump needs a <texture>"))?;
                 let height = self.texture_node(tex)?;
                 let scale = self.float(n, "scale", 1.0)?;
                 let inner = self.nested(n, 0)?;
@@ -553,29 +667,38 @@ impl Loader {
                 let normals = match self.prop(n, "normalmap") {
                     Some(_) => self.texture(n, "normalmap", Rgb::splat(0.5))?,
                     None => {
-                        let tex = n.children().find(|c| c.is_element() && c.tag_name().name() == "texture").ok_or_else(|| self.err(n, "normalmap needs a <texture>"))?;
+                        let tex = n
+                            .children()
+                            .find(|c| c.is_element() && c.tag_name().name() == "texture")
+                            .ok_or_else(|| self.err(n, "normalmap needs a <texture>"))?;
                         self.texture_node(tex)?
                     }
                 };
-                                let inner = self.nested(n, 0)?;
+                let inner = self.nested(n, 0)?;
                 Ok(Parsed { perturbation: Some(Perturbation::NormalMap { normals }), ..inner })
             }
             "null" => Ok(Parsed { bsdf: Bsdf::Black, perturbation: None, alpha: Some(Texture::constant(0.0)) }),
             other => {
                 let pos = n.document().text_pos_at(n.range().start);
-                self.warn(format!("{}:{}: BSDF type '{other}' is not supported; rendered as magenta diffuse", self.file.display(), pos.row));
+                self.warn(format!(
+                    "{}:{}: BSDF type '{other}' is not supported; rendered as magenta diffuse",
+                    self.file.display(),
+                    pos.row
+                ));
                 plain(Material::fallback(other).bsdf)
             }
         }
     }
 
-    fn default_material(&mut self) -> u32 {
-        if let Some(i) = self.default_material {
+    fn default_material(&mut self, emitter: bool) -> u32 {
+        let slot = emitter as usize;
+        if let Some(i) = self.default_materials[slot] {
             return i;
         }
         let i = self.desc.materials.len() as u32;
-        self.desc.materials.push(Material::new("default", Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(0.5) })));
-        self.default_material = Some(i);
+        let (name, value) = if emitter { ("default-emitter", 0.0) } else { ("default", 0.5) };
+        self.desc.materials.push(Material::new(name, Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(value) })));
+        self.default_materials[slot] = Some(i);
         i
     }
 
@@ -612,7 +735,9 @@ impl Loader {
             "sphere" => {
                 let c = self.point(n, "center", Vec3::ZERO)?;
                 let r = self.float(n, "radius", 1.0)? as f64;
-                let local = Transform::translate([c.x as f64, c.y as f64, c.z as f64]).compose(&Transform::scale([r, r, r]).ok_or_else(|| self.err(n, "sphere radius must not be zero"))?);
+                let local = Transform::translate([c.x as f64, c.y as f64, c.z as f64]).compose(
+                    &Transform::scale([r, r, r]).ok_or_else(|| self.err(n, "sphere radius must not be zero"))?,
+                );
                 shapes::sphere(64).transform(&local)
             }
             "cylinder" => {
@@ -631,11 +756,16 @@ impl Loader {
                     [(f.s.z * r) as f64, (f.t.z * r) as f64, (f.n.z * len) as f64, p0.z as f64],
                     [0.0, 0.0, 0.0, 1.0],
                 ];
-                shapes::cylinder(128).transform(&Transform::from_matrix(m).ok_or_else(|| self.err(n, "degenerate cylinder"))?)
+                shapes::cylinder(128)
+                    .transform(&Transform::from_matrix(m).ok_or_else(|| self.err(n, "degenerate cylinder"))?)
             }
             other => {
                 let pos = n.document().text_pos_at(n.range().start);
-                self.warn(format!("{}:{}: shape type '{other}' is not supported; skipped", self.file.display(), pos.row));
+                self.warn(format!(
+                    "{}:{}: shape type '{other}' is not supported; skipped",
+                    self.file.display(),
+                    pos.row
+                ));
                 return Ok(());
             }
         };
@@ -661,16 +791,16 @@ impl Loader {
                 "bsdf" => mref = Some(self.material(c)?),
                 "ref" => {
                     let id = self.attr(c, "id")?.unwrap_or_default();
-                    let m = self.materials.get(&id).cloned().ok_or_else(|| self.err(c, format!("no bsdf with id '{id}'")))?;
+                    let m = self
+                        .materials
+                        .get(&id)
+                        .cloned()
+                        .ok_or_else(|| self.err(c, format!("no bsdf with id '{id}'")))?;
                     mref = Some(m);
                 }
                 _ => {}
             }
         }
-        let mref = match mref {
-            Some(m) => m,
-            None => MaterialRef { index: self.default_material(), alpha: None },
-        };
         let mut emission = None;
         if let Some(e) = n.children().find(|c| c.is_element() && c.tag_name().name() == "emitter") {
             let ety = self.attr(e, "type")?.unwrap_or_default();
@@ -679,6 +809,11 @@ impl Loader {
             }
             emission = Some(self.color(e, "radiance", Rgb::WHITE)?);
         }
+        // Without a BSDF, Mitsuba makes emitters black and everything else 50 % grey.
+        let mref = match mref {
+            Some(m) => m,
+            None => MaterialRef { index: self.default_material(emission.is_some()), alpha: None },
+        };
         let name = self.attr(n, "id")?.unwrap_or_else(|| format!("{ty}#{}", self.desc.meshes.len()));
         let mut mesh: Mesh = data.into_mesh(name);
         mesh.material = mref.index;
@@ -737,7 +872,9 @@ impl Loader {
                 let sky = self.float(n, "sky_scale", 1.0)?;
                 self.warn(format!("{}: '{ty}' is approximated by a directional sun (irradiance {sun}) and a constant sky (radiance {:.2}); not Mitsuba's model", self.file.display(), 0.05 * sky));
                 if ty != "sky" {
-                    self.desc.lights.push(Light::Directional { direction: -d.normalize(), irradiance: Rgb::splat(sun) });
+                    self.desc
+                        .lights
+                        .push(Light::Directional { direction: -d.normalize(), irradiance: Rgb::splat(sun) });
                 }
                 if ty == "sun" {
                     return Ok(());
@@ -747,7 +884,11 @@ impl Loader {
             "area" => return Err(self.err(n, "an area emitter must be inside a <shape>")),
             other => {
                 let pos = n.document().text_pos_at(n.range().start);
-                self.warn(format!("{}:{}: emitter type '{other}' is not supported; ignored", self.file.display(), pos.row));
+                self.warn(format!(
+                    "{}:{}: emitter type '{other}' is not supported; ignored",
+                    self.file.display(),
+                    pos.row
+                ));
                 return Ok(());
             }
         };
@@ -759,10 +900,19 @@ impl Loader {
         let ty = self.attr(n, "type")?.unwrap_or_default();
         if ty != "perspective" && ty != "thinlens" {
             let pos = n.document().text_pos_at(n.range().start);
-            self.warn(format!("{}:{}: sensor '{ty}' is not supported; using a perspective camera", self.file.display(), pos.row));
+            self.warn(format!(
+                "{}:{}: sensor '{ty}' is not supported; using a perspective camera",
+                self.file.display(),
+                pos.row
+            ));
         }
         let to_world = self.transform(n, "to_world")?;
-        let mut settings = RenderSettings { integrator: self.desc.settings.integrator.clone(), max_depth: self.desc.settings.max_depth, rr_depth: self.desc.settings.rr_depth, ..RenderSettings::default() };
+        let mut settings = RenderSettings {
+            integrator: self.desc.settings.integrator.clone(),
+            max_depth: self.desc.settings.max_depth,
+            rr_depth: self.desc.settings.rr_depth,
+            ..RenderSettings::default()
+        };
         let film = n.children().find(|c| c.is_element() && c.tag_name().name() == "film");
         if let Some(f) = film {
             let w = self.int(f, "width", 768)?;
@@ -776,7 +926,10 @@ impl Loader {
                     "tent" => Filter::Tent { radius: self.float(rf, "radius", 1.0)? },
                     "gaussian" => Filter::Gaussian { stddev: self.float(rf, "stddev", 0.5)? },
                     other => {
-                        self.warn(format!("{}: reconstruction filter '{other}' is not supported; using gaussian", self.file.display()));
+                        self.warn(format!(
+                            "{}: reconstruction filter '{other}' is not supported; using gaussian",
+                            self.file.display()
+                        ));
                         Filter::Gaussian { stddev: 0.5 }
                     }
                 };
@@ -793,7 +946,11 @@ impl Loader {
             Some(_) => self.float(n, "fov", 45.0)?,
             None => match self.string(n, "focal_length")? {
                 Some(fl) => {
-                    let mm: f32 = fl.trim_end_matches("mm").trim().parse().map_err(|_| self.err(n, format!("bad focal length '{fl}'")))?;
+                    let mm: f32 = fl
+                        .trim_end_matches("mm")
+                        .trim()
+                        .parse()
+                        .map_err(|_| self.err(n, format!("bad focal length '{fl}'")))?;
                     2.0 * (36.0 / (2.0 * mm)).atan().to_degrees()
                 }
                 None => 45.0,
@@ -817,7 +974,15 @@ impl Loader {
             return Err(self.err(n, "thinlens needs a positive focus_distance"));
         }
         let near = self.float(n, "near_clip", 0.0)?.max(0.0);
-        self.desc.camera = Some(Camera::new(to_world, settings.width, settings.height, fov, axis, aperture, focus, near));
+        self.desc.camera = Some(Camera::new(
+            to_world,
+            settings.width,
+            settings.height,
+            fov,
+            axis,
+            Lens { aperture_radius: aperture, focus_distance: focus },
+            near,
+        ));
         self.desc.settings = settings;
         Ok(())
     }

@@ -10,6 +10,9 @@ use crate::color::Rgb;
 use crate::math::{vec2, vec3, Vec2, Vec3};
 use crate::scene::shapes::TriangleData;
 
+/// A face corner's (position, texture coordinate, normal) indices: equal keys share a vertex.
+type VertexKey = (usize, Option<usize>, Option<usize>);
+
 /// One group of faces sharing a material.
 #[derive(Debug, Default)]
 pub struct ObjGroup {
@@ -68,7 +71,7 @@ pub fn load_obj(path: &Path) -> Result<ObjFile, LoadError> {
     let (mut v, mut vt, mut vn) = (Vec::<Vec3>::new(), Vec::<Vec2>::new(), Vec::<Vec3>::new());
     let mut file = ObjFile::default();
     let mut current: Option<String> = None;
-    let mut groups: Vec<(ObjGroup, HashMap<(usize, Option<usize>, Option<usize>), u32>)> = Vec::new();
+    let mut groups: Vec<(ObjGroup, HashMap<VertexKey, u32>)> = Vec::new();
     let mut group_of: HashMap<Option<String>, usize> = HashMap::new();
     for (ln, raw) in text.lines().enumerate() {
         let line = ln + 1;
@@ -89,7 +92,9 @@ pub fn load_obj(path: &Path) -> Result<ObjFile, LoadError> {
                 let name = parts.join(" ");
                 match super::confined_path(dir, &name) {
                     Ok(p) if p.exists() => file.materials.extend(load_mtl(&p)?),
-                    Ok(p) => eprintln!("warning: {}:{line}: material library {} not found", path.display(), p.display()),
+                    Ok(p) => {
+                        eprintln!("warning: {}:{line}: material library {} not found", path.display(), p.display())
+                    }
                     Err(e) => return Err(LoadError::at(path, line, e)),
                 }
             }
@@ -164,10 +169,13 @@ pub fn triangulate(pts: &[Vec3]) -> Vec<[usize; 3]> {
         return (1..n - 1).map(|i| [0, i, i + 1]).collect();
     }
     let frame = crate::math::Frame::from_normal(normal.normalize());
-    let p2: Vec<Vec2> = pts.iter().map(|p| {
-        let l = frame.to_local(*p);
-        vec2(l.x, l.y)
-    }).collect();
+    let p2: Vec<Vec2> = pts
+        .iter()
+        .map(|p| {
+            let l = frame.to_local(*p);
+            vec2(l.x, l.y)
+        })
+        .collect();
     let cross = |o: Vec2, a: Vec2, b: Vec2| (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
     let mut idx: Vec<usize> = (0..n).collect();
     let mut out = Vec::with_capacity(n - 2);

@@ -103,7 +103,10 @@ impl Reader<'_> {
 pub fn load_ply(path: &Path) -> Result<TriangleData, LoadError> {
     let data = std::fs::read(path).map_err(|e| LoadError::io(path, e))?;
     let err = |m: String| LoadError::at(path, 0, m);
-    let header_end = data.windows(10).position(|w| w == b"end_header").ok_or_else(|| err("not a PLY file (no end_header)".into()))?;
+    let header_end = data
+        .windows(10)
+        .position(|w| w == b"end_header")
+        .ok_or_else(|| err("not a PLY file (no end_header)".into()))?;
     let header = std::str::from_utf8(&data[..header_end]).map_err(|_| err("header is not text".into()))?;
     let mut lines = header.lines();
     if lines.next().map(str::trim) != Some("ply") {
@@ -131,12 +134,15 @@ pub fn load_ply(path: &Path) -> Result<TriangleData, LoadError> {
             ["property", "list", c, k, name] => {
                 let e = elements.last_mut().ok_or_else(|| LoadError::at(path, line, "property before any element"))?;
                 let (c, k) = (Scalar::parse(c), Scalar::parse(k));
-                let (Some(c), Some(k)) = (c, k) else { return Err(LoadError::at(path, line, "unknown list property type")) };
+                let (Some(c), Some(k)) = (c, k) else {
+                    return Err(LoadError::at(path, line, "unknown list property type"));
+                };
                 e.props.push(Property { name: name.to_string(), kind: k, list: Some(c) });
             }
             ["property", k, name] => {
                 let e = elements.last_mut().ok_or_else(|| LoadError::at(path, line, "property before any element"))?;
-                let kind = Scalar::parse(k).ok_or_else(|| LoadError::at(path, line, format!("unknown property type '{k}'")))?;
+                let kind = Scalar::parse(k)
+                    .ok_or_else(|| LoadError::at(path, line, format!("unknown property type '{k}'")))?;
                 e.props.push(Property { name: name.to_string(), kind, list: None });
             }
             _ => {}
@@ -151,13 +157,21 @@ pub fn load_ply(path: &Path) -> Result<TriangleData, LoadError> {
             break;
         }
     }
-    let text_body = if format == Format::Ascii { std::str::from_utf8(&data[body..]).map_err(|_| err("ASCII body is not text".into()))? } else { "" };
+    let text_body = if format == Format::Ascii {
+        std::str::from_utf8(&data[body..]).map_err(|_| err("ASCII body is not text".into()))?
+    } else {
+        ""
+    };
     let mut r = Reader { data: &data, pos: body, format, tokens: text_body.split_ascii_whitespace().peekable() };
     let mut out = TriangleData::default();
     let (mut has_n, mut has_uv) = (false, false);
     for e in &elements {
         // Guard absurd counts before allocating (a truncated or hostile header).
-        let min_bytes = if format == Format::Ascii { 1 } else { e.props.iter().map(|p| p.list.unwrap_or(p.kind).size()).sum::<usize>().max(1) };
+        let min_bytes = if format == Format::Ascii {
+            1
+        } else {
+            e.props.iter().map(|p| p.list.unwrap_or(p.kind).size()).sum::<usize>().max(1)
+        };
         if e.count.saturating_mul(min_bytes) > data.len() {
             return Err(err(format!("element '{}' claims {} entries, more than the file can hold", e.name, e.count)));
         }

@@ -20,7 +20,10 @@ struct Cursor<'a> {
 
 impl Cursor<'_> {
     fn take(&mut self, n: usize) -> Result<&[u8], String> {
-        let s = self.data.get(self.pos..self.pos.checked_add(n).ok_or("size overflow")?).ok_or("shape data ends early (truncated)")?;
+        let s = self
+            .data
+            .get(self.pos..self.pos.checked_add(n).ok_or("size overflow")?)
+            .ok_or("shape data ends early (truncated)")?;
         self.pos += n;
         Ok(s)
     }
@@ -31,7 +34,11 @@ impl Cursor<'_> {
         Ok(u64::from_le_bytes(self.take(8)?.try_into().unwrap()))
     }
     fn real(&mut self, double: bool) -> Result<f32, String> {
-        Ok(if double { f64::from_le_bytes(self.take(8)?.try_into().unwrap()) as f32 } else { f32::from_le_bytes(self.take(4)?.try_into().unwrap()) })
+        Ok(if double {
+            f64::from_le_bytes(self.take(8)?.try_into().unwrap()) as f32
+        } else {
+            f32::from_le_bytes(self.take(4)?.try_into().unwrap())
+        })
     }
 }
 
@@ -49,12 +56,20 @@ fn offsets(path: &Path, data: &[u8]) -> Result<Vec<u64>, LoadError> {
     let version = u16::from_le_bytes([data[2], data[3]]);
     let n = u32::from_le_bytes(data[data.len() - 4..].try_into().unwrap()) as usize;
     let entry = if version >= 4 { 8 } else { 4 };
-    let table = n.checked_mul(entry).and_then(|t| t.checked_add(4)).filter(|&t| t <= data.len()).ok_or_else(|| err("shape table does not fit in the file (truncated?)"))?;
+    let table = n
+        .checked_mul(entry)
+        .and_then(|t| t.checked_add(4))
+        .filter(|&t| t <= data.len())
+        .ok_or_else(|| err("shape table does not fit in the file (truncated?)"))?;
     let start = data.len() - table;
     Ok((0..n)
         .map(|i| {
             let b = &data[start + i * entry..start + (i + 1) * entry];
-            if entry == 8 { u64::from_le_bytes(b.try_into().unwrap()) } else { u32::from_le_bytes(b.try_into().unwrap()) as u64 }
+            if entry == 8 {
+                u64::from_le_bytes(b.try_into().unwrap())
+            } else {
+                u32::from_le_bytes(b.try_into().unwrap()) as u64
+            }
         })
         .collect())
 }
@@ -68,7 +83,10 @@ pub fn load_serialized(path: &Path, index: usize) -> Result<TriangleData, LoadEr
     let head = data.get(off..off + 4).ok_or_else(|| err("offset beyond the end of the file".into()))?;
     let version = u16::from_le_bytes([head[2], head[3]]);
     let mut raw = Vec::new();
-    flate2::read::ZlibDecoder::new(&data[off + 4..]).read_to_end(&mut raw).or_else(|e| if raw.is_empty() { Err(e) } else { Ok(0) }).map_err(|e| err(format!("cannot decompress: {e}")))?;
+    flate2::read::ZlibDecoder::new(&data[off + 4..])
+        .read_to_end(&mut raw)
+        .or_else(|e| if raw.is_empty() { Err(e) } else { Ok(0) })
+        .map_err(|e| err(format!("cannot decompress: {e}")))?;
     let mut c = Cursor { data: &raw, pos: 0 };
     let flags = c.u32().map_err(&err)?;
     if version >= 4 {
@@ -88,11 +106,19 @@ pub fn load_serialized(path: &Path, index: usize) -> Result<TriangleData, LoadEr
     }
     let mut d = TriangleData::default();
     for _ in 0..nv {
-        d.positions.push(vec3(c.real(double).map_err(&err)?, c.real(double).map_err(&err)?, c.real(double).map_err(&err)?));
+        d.positions.push(vec3(
+            c.real(double).map_err(&err)?,
+            c.real(double).map_err(&err)?,
+            c.real(double).map_err(&err)?,
+        ));
     }
     if flags & HAS_NORMALS != 0 {
         for _ in 0..nv {
-            d.normals.push(vec3(c.real(double).map_err(&err)?, c.real(double).map_err(&err)?, c.real(double).map_err(&err)?));
+            d.normals.push(vec3(
+                c.real(double).map_err(&err)?,
+                c.real(double).map_err(&err)?,
+                c.real(double).map_err(&err)?,
+            ));
         }
     }
     if flags & HAS_TEXCOORDS != 0 {
