@@ -1,0 +1,232 @@
+//! Malformed or hostile input must give a clear error that names the file (and the line,
+//! where there is one) and says what is wrong — never a panic, never a silent wrong image.
+
+use std::path::{Path, PathBuf};
+
+use skelight::integrator::{by_name, render, RenderOptions};
+use skelight::scene::load::load;
+
+struct Dir(PathBuf);
+
+impl Dir {
+    fn new(name: &str) -> Dir {
+        let d = std::env::temp_dir().join(format!("skelight-bad-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        Dir(d)
+    }
+    fn file(&self, name: &str, contents: &[u8]) -> PathBuf {
+        let p = self.0.join(name);
+        if let Some(parent) = p.parent() {
+            std::fs::create_dir_all(parent).unwrap();
+        }
+        std::fs::write(&p, contents).unwrap();
+        p
+    }
+}
+
+impl Drop for Dir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A minimal valid scene around `body`.
+fn scene(body: &str) -> String {
+    format!(
+        r#"<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="40"/>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+{body}
+</scene>"#
+    )
+}
+
+fn load_err(path: &Path) -> String {
+    match load(path, &[]) {
+        Ok(_) => panic!("{} loaded without error", path.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn assert_mentions(msg: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(msg.contains(p), "error message {msg:?} does not mention {p:?}");
+    }
+}
+
+#[test]
+fn malformed_xml_reports_file_and_line() {
+    let d = Dir::new("xml");
+    let p = d.file("broken.xml", b"<scene version=\"3.0.0\">\n  <shape type=\"cube\">\n  </shap>\n</scene>\n");
+    let e = load_err(&p);
+    assert_mentions(&e, &["broken.xml:3", "malformed XML"]);
+    let p = d.file("notscene.xml", b"<foo/>");
+    assert_mentions(&load_err(&p), &["notscene.xml", "<scene>"]);
+}
+
+#[test]
+fn undefined_parameters_and_bad_values_are_named() {
+    let d = Dir::new("params");
+    let p = d.file("a.xml", scene(r#"<shape type="sphere"><float name="radius" value="$r"/></shape>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["a.xml:", "$r"]);
+    // The same file works once the parameter is given.
+    assert!(load(&p, &[("r".into(), "2".into())]).is_ok());
+    let p = d.file("b.xml", scene(r#"<shape type="sphere"><float name="radius" value="big"/></shape>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["b.xml:", "radius", "not a number"]);
+    let p = d.file(
+        "c.xml",
+        scene(r#"<shape type="cube"><transform name="to_world"><scale value="0"/></transform></shape>"#).as_bytes(),
+    );
+    assert_mentions(&load_err(&p), &["c.xml:", "singular"]);
+}
+
+#[test]
+fn files_outside_the_scene_folder_are_refused() {
+    let d = Dir::new("escape");
+    d.file("outside.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let p = d.file(
+        "inner/scene.xml",
+        scene(r#"<shape type="obj"><string name="filename" value="../outside.obj"/></shape>"#).as_bytes(),
+    );
+    assert_mentions(&load_err(&p), &["scene.xml:", "leaves the scene folder"]);
+    let p = d.file("inner/inc.xml", scene(r#"<include filename="../other.xml"/>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["inc.xml:", "leaves the scene folder"]);
+    let p = d.file(
+        "inner/abs.xml",
+        scene(r#"<shape type="obj"><string name="filename" value="/etc/passwd"/></shape>"#).as_bytes(),
+    );
+    assert_mentions(&load_err(&p), &["abs.xml:", "absolute"]);
+}
+
+#[test]
+fn missing_files_are_named() {
+    let d = Dir::new("missing");
+    let p =
+        d.file("s.xml", scene(r#"<shape type="obj"><string name="filename" value="nope.obj"/></shape>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["s.xml:", "nope.obj", "not found"]);
+    let tex = r#"<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" type="bitmap">
+        <string name="filename" value="gone.png"/></texture></bsdf></shape>"#;
+    let p = d.file("t.xml", scene(tex).as_bytes());
+    assert_mentions(&load_err(&p), &["t.xml:", "gone.png"]);
+    assert_mentions(&load_err(&d.0.join("absent.xml")), &["absent.xml", "not found"]);
+}
+
+#[test]
+fn corrupt_texture_is_an_error_naming_it() {
+    let d = Dir::new("tex");
+    d.file("bad.png", b"\x89PNG\r\n\x1a\nthis is not really a png");
+    let tex = r#"<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" type="bitmap">
+        <string name="filename" value="bad.png"/></texture></bsdf></shape>"#;
+    let p = d.file("t.xml", scene(tex).as_bytes());
+    assert_mentions(&load_err(&p), &["bad.png"]);
+}
+
+fn obj_scene(d: &Dir, obj: &[u8]) -> String {
+    d.file("m.obj", obj);
+    let p = d.file("s.xml", scene(r#"<shape type="obj"><string name="filename" value="m.obj"/></shape>"#).as_bytes());
+    load_err(&p)
+}
+
+#[test]
+fn broken_obj_files() {
+    let d = Dir::new("obj");
+    assert_mentions(
+        &obj_scene(&d, b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n"),
+        &["m.obj:4", "vertex index 7 out of range"],
+    );
+    assert_mentions(&obj_scene(&d, b"v 0 0\n"), &["m.obj:1", "expected 3 numbers"]);
+    assert_mentions(&obj_scene(&d, b"v 0 0 x\n"), &["m.obj:1", "not a number"]);
+    assert_mentions(&obj_scene(&d, b"v 0 0 0\nv 1 0 0\nf 1 2\n"), &["m.obj:3", "at least 3"]);
+    assert_mentions(&obj_scene(&d, b"v 0 0 nan\n"), &["m.obj:1", "not finite"]);
+    assert_mentions(
+        &obj_scene(&d, b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/5 2 3\n"),
+        &["m.obj:4", "texture coordinate index 5"],
+    );
+}
+
+fn ply_scene(d: &Dir, ply: &[u8]) -> String {
+    d.file("m.ply", ply);
+    let p = d.file("s.xml", scene(r#"<shape type="ply"><string name="filename" value="m.ply"/></shape>"#).as_bytes());
+    load_err(&p)
+}
+
+#[test]
+fn broken_ply_files() {
+    let d = Dir::new("ply");
+    let header = |fmt: &str, nv: usize, nf: usize| {
+        format!("ply\nformat {fmt} 1.0\nelement vertex {nv}\nproperty float x\nproperty float y\nproperty float z\nelement face {nf}\nproperty list uchar int vertex_indices\nend_header\n")
+    };
+    // Truncated binary body.
+    let mut b = header("binary_little_endian", 3, 1).into_bytes();
+    b.extend_from_slice(&[0u8; 20]);
+    assert_mentions(&ply_scene(&d, &b), &["m.ply", "truncated"]);
+    // Face index beyond the vertices.
+    let a = format!("{}0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n", header("ascii", 3, 1));
+    assert_mentions(&ply_scene(&d, a.as_bytes()), &["m.ply", "vertex 9"]);
+    // Absurd counts are refused before allocating.
+    let h = header("binary_little_endian", 4_000_000_000, 1);
+    assert_mentions(&ply_scene(&d, h.as_bytes()), &["m.ply", "more than the file can hold"]);
+    assert_mentions(&ply_scene(&d, b"not a ply"), &["m.ply", "PLY"]);
+    // A valid ASCII file loads.
+    let ok = format!("{}0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", header("ascii", 3, 1));
+    d.file("ok.ply", ok.as_bytes());
+    let p = d.file("ok.xml", scene(r#"<shape type="ply"><string name="filename" value="ok.ply"/></shape>"#).as_bytes());
+    assert_eq!(load(&p, &[]).unwrap().triangle_count(), 1);
+}
+
+#[test]
+fn broken_serialized_files() {
+    let d = Dir::new("ser");
+    let ser = |bytes: &[u8], index: i32| {
+        d.file("m.serialized", bytes);
+        let body = format!(
+            r#"<shape type="serialized"><string name="filename" value="m.serialized"/><integer name="shape_index" value="{index}"/></shape>"#
+        );
+        let p = d.file("s.xml", scene(&body).as_bytes());
+        load_err(&p)
+    };
+    assert_mentions(&ser(b"garbage!", 0), &["m.serialized", "magic"]);
+    // Valid header, table claiming one shape at an offset past the end.
+    let mut b = vec![0x1C, 0x04, 0x04, 0x00];
+    b.extend_from_slice(&1000u64.to_le_bytes());
+    b.extend_from_slice(&1u32.to_le_bytes());
+    assert_mentions(&ser(&b, 0), &["m.serialized", "shape 0"]);
+    assert_mentions(&ser(&b, 3), &["m.serialized", "out of range"]);
+    assert_mentions(&ser(&b, -1), &["s.xml", "shape_index"]);
+}
+
+#[test]
+fn absurd_resolutions_and_sample_counts() {
+    let d = Dir::new("res");
+    let film = |w: i64, h: i64| {
+        format!(
+            r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm"><integer name="width" value="{w}"/><integer name="height" value="{h}"/></film></sensor></scene>"#
+        )
+    };
+    assert_mentions(&load_err(&d.file("zero.xml", film(0, 10).as_bytes())), &["zero.xml:", "must be positive"]);
+    assert_mentions(&load_err(&d.file("huge.xml", film(1_000_000, 1_000_000).as_bytes())), &["huge.xml:", "too large"]);
+    let spp = r#"<scene version="3.0.0"><sensor type="perspective"><sampler type="independent"><integer name="sample_count" value="0"/></sampler></sensor></scene>"#;
+    assert_mentions(&load_err(&d.file("spp.xml", spp.as_bytes())), &["spp.xml:", "sample_count"]);
+    // The render loop refuses a zero sample count or no stopping rule at all.
+    let scene = skelight::scene::builtin::two_rooms();
+    let pt = by_name("pt").unwrap();
+    for opts in [
+        RenderOptions { spp: Some(0), ..Default::default() },
+        RenderOptions { spp: None, time: None, ..Default::default() },
+    ] {
+        assert!(render(&scene, pt.as_ref(), &opts, None, |_, _| true).is_err());
+    }
+}
+
+#[test]
+fn unknown_plugins_warn_and_render_visibly() {
+    let d = Dir::new("unknown");
+    let body = r#"<shape type="rectangle"><bsdf type="hair"/></shape><emitter type="constant"/>"#;
+    let s = load(&d.file("u.xml", scene(body).as_bytes()), &[]).unwrap();
+    assert!(s.warnings.iter().any(|w| w.contains("hair") && w.contains("magenta")), "{:?}", s.warnings);
+    let body = r#"<shape type="rectangle"/><integrator2/>"#;
+    let s = load(&d.file("v.xml", scene(body).as_bytes()), &[]).unwrap();
+    assert!(s.warnings.iter().any(|w| w.contains("integrator2")), "{:?}", s.warnings);
+}
