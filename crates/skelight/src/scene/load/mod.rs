@@ -2,6 +2,7 @@
 //! what is wrong; no input makes the loader panic.
 
 pub mod mitsuba;
+pub mod native;
 pub mod obj;
 pub mod ply;
 pub mod serialized;
@@ -64,7 +65,13 @@ pub fn load_description(path: &Path, defines: &[(String, String)]) -> Result<Sce
     let root = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")).to_path_buf();
     match ext.as_str() {
         "xml" => mitsuba::Loader::new(&root, defines).load(path),
-        other => Err(LoadError::at(path, 0, format!("unsupported scene format '.{other}' (expected .xml)"))),
+        "toml" => native::load_native(path),
+        "obj" | "ply" => native::load_mesh_file(path),
+        other => Err(LoadError::at(
+            path,
+            0,
+            format!("unsupported scene format '.{other}' (expected .xml, .toml, .obj or .ply)"),
+        )),
     }
 }
 
