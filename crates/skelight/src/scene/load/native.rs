@@ -316,12 +316,15 @@ fn override_material(ctx: &mut Ctx, name: &str, o: &MaterialSection) -> Result<M
     Ok(Material::new(name, bsdf))
 }
 
+/// Triangles of one MTL material (None: no `usemtl`).
+type NamedGroup = (Option<String>, TriangleData);
+
 fn load_mesh(ctx: &mut Ctx, m: &MeshSection, desc: &mut SceneDescription) -> Result<(), LoadError> {
     let file = ctx.dir.join(&m.file);
     let t = transform_of(&m.transform).ok_or_else(|| ctx.err(format!("mesh '{}': singular transform", m.file)))?;
     let ext = file.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let base = file.parent().unwrap_or(Path::new(".")).to_path_buf();
-    let (groups, mtl): (Vec<(Option<String>, TriangleData)>, HashMap<String, MtlMaterial>) = match ext.as_str() {
+    let (groups, mtl): (Vec<NamedGroup>, HashMap<String, MtlMaterial>) = match ext.as_str() {
         "obj" => {
             let obj = load_obj(&file)?;
             let mtl = obj.materials.into_iter().map(|x| (x.name.clone(), x)).collect();
