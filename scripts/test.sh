@@ -11,6 +11,24 @@ if [ ! -d ../shared/conformance ]; then
     echo "../shared/conformance is missing: the tests read the conformance scenes from there" >&2
     exit 1
 fi
+# The Embree backend is optional; its tests need Debian's libembree-dev, installed here
+# when this script may (root with apt), skipped with a note otherwise.
+embree=""
+if [ -e /usr/include/embree3/rtcore.h ]; then
+    embree=1
+elif [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    echo "installing libembree-dev for the Embree backend tests"
+    if (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libembree-dev) >/dev/null 2>&1; then
+        embree=1
+    fi
+fi
+
 cargo fmt --all -- --check
 cargo clippy --all-targets --release -- -D warnings
 cargo test --release --workspace
+if [ -n "$embree" ]; then
+    cargo clippy --all-targets --release --features embree -p skelight -p skelight-cli -- -D warnings
+    cargo test --release -p skelight --features embree --lib geometry
+else
+    echo "note: libembree-dev not available; Embree backend tests skipped"
+fi

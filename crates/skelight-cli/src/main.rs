@@ -1,4 +1,6 @@
-//! `skelight`: render scenes, compare images.
+//! `skelight`: render scenes, compare images, measure throughput.
+
+mod bench;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -24,12 +26,73 @@ enum Command {
     Render(RenderArgs),
     /// Error metrics between two images (MAE, RMSE, relMSE, NRMSE).
     Diff { a: PathBuf, b: PathBuf },
+    /// Measure throughput: ray tracing per backend, or an estimator's samples per second.
+    Bench {
+        #[command(subcommand)]
+        what: BenchKind,
+    },
     /// Print what a scene contains and any loader warnings.
     Info {
         scene: PathBuf,
         #[arg(short = 'D', value_parser = parse_define)]
         define: Vec<(String, String)>,
     },
+}
+
+#[derive(Subcommand)]
+enum BenchKind {
+    /// BVH build time and incoherent closest-hit/any-hit Mrays/s, every compiled-in backend.
+    Rays {
+        scenes: Vec<PathBuf>,
+        /// Rays per measurement (origins on surfaces, uniform directions).
+        #[arg(long, default_value_t = 2_000_000)]
+        rays: usize,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+    /// Samples per second of an estimator on a scene.
+    Render {
+        scene: PathBuf,
+        #[arg(short, long, default_value = "pt")]
+        integrator: String,
+        #[arg(long, default_value_t = 16)]
+        spp: u32,
+        #[command(flatten)]
+        setup: SceneSetup,
+    },
+}
+
+/// How to run a loaded scene, shared by `render` and `bench render`.
+#[derive(clap::Args)]
+struct SceneSetup {
+    /// Worker threads (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Override image width and height (keeps the field of view).
+    #[arg(long, num_args = 2, value_names = ["W", "H"])]
+    resolution: Option<Vec<usize>>,
+    /// Maximum path depth (Mitsuba's max_depth; -1 = unbounded). Overrides the scene.
+    #[arg(long)]
+    max_depth: Option<i32>,
+    /// Ray-tracing backend: bvh (built in) or embree (when compiled with --features embree).
+    #[arg(long, default_value = "bvh")]
+    backend: String,
+}
+
+impl SceneSetup {
+    fn apply(&self, scene: &mut Scene) -> Result<()> {
+        if let Some(r) = &self.resolution {
+            skelight::scene::load::mitsuba::check_resolution(r[0] as i64, r[1] as i64).map_err(anyhow::Error::msg)?;
+            scene.set_resolution(r[0], r[1]);
+        }
+        if let Some(d) = self.max_depth {
+            if d < -1 {
+                bail!("--max-depth must be -1 (unbounded) or at least 0");
+            }
+            scene.settings.max_depth = d;
+        }
+        use_backend(scene, &self.backend)
+    }
 }
 
 #[derive(clap::Args)]
@@ -51,15 +114,8 @@ struct RenderArgs {
     /// Random seed; equal seeds give identical images, different seeds independent ones.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Worker threads (0 = all cores).
-    #[arg(long, default_value_t = 0)]
-    threads: usize,
-    /// Override image width and height (keeps the field of view).
-    #[arg(long, num_args = 2, value_names = ["W", "H"])]
-    resolution: Option<Vec<usize>>,
-    /// Maximum path depth (Mitsuba's max_depth; -1 = unbounded). Overrides the scene.
-    #[arg(long)]
-    max_depth: Option<i32>,
+    #[command(flatten)]
+    setup: SceneSetup,
     /// PNG exposure in stops.
     #[arg(long, default_value_t = 0.0)]
     exposure: f32,
@@ -90,19 +146,89 @@ fn load_scene(path: Option<&Path>, defines: &[(String, String)]) -> Result<Scene
     Ok(scene)
 }
 
+/// Switches the scene to the named ray-tracing backend.
+fn use_backend(scene: &mut Scene, name: &str) -> Result<()> {
+    let (_, build) = bench::backends().into_iter().find(|(n, _)| *n == name).with_context(|| {
+        format!(
+            "unknown or not compiled-in backend '{name}'; available: {}",
+            bench::backends().iter().map(|b| b.0).collect::<Vec<_>>().join(", ")
+        )
+    })?;
+    if name != "bvh" {
+        let tris = scene.build_triangles();
+        scene.set_accelerator(build(&tris));
+    }
+    Ok(())
+}
+
+fn bench(what: BenchKind) -> Result<()> {
+    match what {
+        BenchKind::Rays { scenes, rays, threads } => {
+            rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().ok();
+            println!(
+                "{:<28} {:>9} {:>8} {:>10} {:>13} {:>11} {:>7}",
+                "scene", "triangles", "backend", "build ms", "closest Mr/s", "any Mr/s", "hit %"
+            );
+            for path in scenes {
+                let scene = load_scene(Some(&path), &[])?;
+                let tris = scene.build_triangles();
+                let rs = bench::incoherent_rays(&tris, rays, 1);
+                let mut first: Option<(f64, f64, f64)> = None;
+                for (name, build) in bench::backends() {
+                    let r = bench::measure(&tris, &rs, build.as_ref());
+                    let label = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+                    let ratio = first
+                        .map(|(b, c, a)| {
+                            format!(
+                                "  (vs bvh: build ×{:.2}, closest ×{:.2}, any ×{:.2})",
+                                r.build.as_secs_f64() / b,
+                                r.closest_mrays / c,
+                                r.any_mrays / a
+                            )
+                        })
+                        .unwrap_or_default();
+                    println!(
+                        "{:<28} {:>9} {:>8} {:>10.1} {:>13.2} {:>11.2} {:>7.2}{ratio}",
+                        label,
+                        tris.len(),
+                        name,
+                        r.build.as_secs_f64() * 1e3,
+                        r.closest_mrays,
+                        r.any_mrays,
+                        100.0 * r.hits as f64 / rs.len() as f64
+                    );
+                    first.get_or_insert((r.build.as_secs_f64(), r.closest_mrays, r.any_mrays));
+                }
+            }
+            Ok(())
+        }
+        BenchKind::Render { scene: path, integrator: name, spp, setup } => {
+            let mut scene = load_scene(Some(&path), &[])?;
+            setup.apply(&mut scene)?;
+            let integrator = integrator::by_name(&name).with_context(|| format!("unknown integrator '{name}'"))?;
+            let opts = RenderOptions { spp: Some(spp), time: None, seed: 1, threads: setup.threads };
+            let r = integrator::render(&scene, integrator.as_ref(), &opts, None, |_, _| true)?;
+            let samples = r.spp as f64 * (scene.settings.width * scene.settings.height) as f64;
+            println!(
+                "{} {}: {}×{} {} spp, max depth {}, {:.3} s, {:.3} Msamples/s, mean {:?}",
+                path.display(),
+                name,
+                scene.settings.width,
+                scene.settings.height,
+                r.spp,
+                scene.settings.max_depth,
+                r.elapsed.as_secs_f64(),
+                samples / r.elapsed.as_secs_f64() / 1e6,
+                r.film.image().mean()
+            );
+            Ok(())
+        }
+    }
+}
+
 fn render(args: RenderArgs) -> Result<()> {
     let mut scene = load_scene(args.scene.as_deref(), &args.define)?;
-    if let Some(r) = &args.resolution {
-        let (w, h) = (r[0], r[1]);
-        skelight::scene::load::mitsuba::check_resolution(w as i64, h as i64).map_err(anyhow::Error::msg)?;
-        scene.set_resolution(w, h);
-    }
-    if let Some(d) = args.max_depth {
-        if d < -1 {
-            bail!("--max-depth must be -1 (unbounded) or at least 0");
-        }
-        scene.settings.max_depth = d;
-    }
+    args.setup.apply(&mut scene)?;
     let integrator = integrator::by_name(&args.integrator).with_context(|| {
         format!("unknown integrator '{}'; available: {}", args.integrator, integrator::INTEGRATORS.join(", "))
     })?;
@@ -119,7 +245,7 @@ fn render(args: RenderArgs) -> Result<()> {
         (None, Some(_)) => None,
         (None, None) => Some(if args.scene.is_some() { scene.settings.spp } else { 16 }),
     };
-    let opts = RenderOptions { spp, time, seed: args.seed, threads: args.threads };
+    let opts = RenderOptions { spp, time, seed: args.seed, threads: args.setup.threads };
     let (w, h) = (scene.settings.width, scene.settings.height);
     eprintln!(
         "{}: {} triangles, {} lights, {}×{}, {} , max depth {}",
@@ -180,6 +306,7 @@ fn main() {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Render(a) => render(a),
+        Command::Bench { what } => bench(what),
         Command::Diff { a, b } => (|| {
             let ia = Image::load(&a)?;
             let ib = Image::load(&b)?;

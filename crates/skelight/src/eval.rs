@@ -106,22 +106,7 @@ pub fn block_means(img: &Image, block: usize) -> Vec<[f64; 3]> {
 /// T = mean_b (avg_b − ref_b)² / mean_b ((r1_b − r2_b)²/4) over block means and channels.
 /// For an unbiased estimator T ≈ 1 at any sample count; bias inflates it.
 pub fn block_t_statistic(r1: &Image, r2: &Image, reference: &Image, block: usize) -> f64 {
-    let (a, b, r) = (block_means(r1, block), block_means(r2, block), block_means(reference, block));
-    let (mut num, mut den) = (0.0f64, 0.0f64);
-    for i in 0..r.len() {
-        for c in 0..3 {
-            let avg = 0.5 * (a[i][c] + b[i][c]);
-            num += (avg - r[i][c]).powi(2);
-            den += (a[i][c] - b[i][c]).powi(2) / 4.0;
-        }
-    }
-    if den > 0.0 {
-        num / den
-    } else if num > 0.0 {
-        f64::INFINITY
-    } else {
-        1.0
-    }
+    weighted_t(r1, r2, reference, block, |_, _| 1.0)
 }
 
 /// [`block_t_statistic`] on relative errors: each block and channel is weighted by
@@ -131,13 +116,19 @@ pub fn block_t_statistic(r1: &Image, r2: &Image, reference: &Image, block: usize
 /// (Weights from the renders' own variance would favour blocks that missed a rare, bright
 /// path and bias the numerator when the noise is heavy-tailed, as with caustics.)
 pub fn relative_block_t_statistic(r1: &Image, r2: &Image, reference: &Image, block: usize) -> f64 {
-    let (a, b, r) = (block_means(r1, block), block_means(r2, block), block_means(reference, block));
+    let r = block_means(reference, block);
     let nb = r.len().max(1) as f64;
     let eps2: [f64; 3] = [0, 1, 2].map(|c| (0.01 * r.iter().map(|x| x[c].abs()).sum::<f64>() / nb).powi(2) + 1e-30);
+    weighted_t(r1, r2, reference, block, |reference, c| 1.0 / (reference * reference + eps2[c]))
+}
+
+/// T with a weight per block and channel, given the reference block mean and the channel.
+fn weighted_t(r1: &Image, r2: &Image, reference: &Image, block: usize, weight: impl Fn(f64, usize) -> f64) -> f64 {
+    let (a, b, r) = (block_means(r1, block), block_means(r2, block), block_means(reference, block));
     let (mut num, mut den) = (0.0f64, 0.0f64);
     for i in 0..r.len() {
         for c in 0..3 {
-            let w = 1.0 / (r[i][c] * r[i][c] + eps2[c]);
+            let w = weight(r[i][c], c);
             num += w * (0.5 * (a[i][c] + b[i][c]) - r[i][c]).powi(2);
             den += w * (a[i][c] - b[i][c]).powi(2) / 4.0;
         }

@@ -123,10 +123,15 @@ fn corrupt_texture_is_an_error_naming_it() {
     assert_mentions(&load_err(&p), &["bad.png"]);
 }
 
+/// Loads a scene whose one shape of `kind` reads `contents` from file `m.<kind>`.
+fn mesh_scene(d: &Dir, kind: &str, contents: &[u8]) -> String {
+    d.file(&format!("m.{kind}"), contents);
+    let body = format!(r#"<shape type="{kind}"><string name="filename" value="m.{kind}"/></shape>"#);
+    load_err(&d.file("s.xml", scene(&body).as_bytes()))
+}
+
 fn obj_scene(d: &Dir, obj: &[u8]) -> String {
-    d.file("m.obj", obj);
-    let p = d.file("s.xml", scene(r#"<shape type="obj"><string name="filename" value="m.obj"/></shape>"#).as_bytes());
-    load_err(&p)
+    mesh_scene(d, "obj", obj)
 }
 
 #[test]
@@ -147,9 +152,7 @@ fn broken_obj_files() {
 }
 
 fn ply_scene(d: &Dir, ply: &[u8]) -> String {
-    d.file("m.ply", ply);
-    let p = d.file("s.xml", scene(r#"<shape type="ply"><string name="filename" value="m.ply"/></shape>"#).as_bytes());
-    load_err(&p)
+    mesh_scene(d, "ply", ply)
 }
 
 #[test]

@@ -1,4 +1,5 @@
-//! Bounding volume hierarchy: binned-SAH build (parallel over subtrees), flat 32-byte nodes,
+//! Bounding volume hierarchy: binned-SAH build (parallel over subtrees), flat 32-byte nodes
+//! with the two children of a node side by side in one 64-byte cache line,
 //! triangles stored in leaf order so a leaf is one contiguous read.
 
 use super::{intersect_triangle, Accelerator, BuildTriangle, Hit, HitFilter, Ray, RayPrecomp};
@@ -14,7 +15,7 @@ const MASKED_BIT: u32 = 1 << 31;
 #[repr(C)]
 struct Node {
     min: Vec3,
-    /// Interior: index of the second child (the first follows this node). Leaf: first triangle.
+    /// Interior: index of the first child (the second is `offset + 1`). Leaf: first triangle.
     offset: u32,
     max: Vec3,
     /// Number of triangles; 0 for interior nodes.
@@ -31,11 +32,26 @@ pub struct BvhStats {
 }
 
 pub struct Bvh {
-    nodes: Vec<Node>,
+    /// Node pairs, 64-byte aligned: node i is `nodes[i / 2].0[i % 2]`. The root is node 0
+    /// (its partner, node 1, is unused) so that every sibling pair starts a cache line.
+    nodes: Vec<NodePair>,
     tris: Vec<[Vec3; 3]>,
     /// Global triangle index per leaf slot; the top bit marks alpha-masked triangles.
     prim_ids: Vec<u32>,
     bounds: Aabb,
+}
+
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct NodePair([Node; 2]);
+
+const EMPTY_NODE: Node = Node { min: Vec3::ZERO, offset: 0, max: Vec3::ZERO, count: 0 };
+
+impl Bvh {
+    #[inline(always)]
+    fn node(&self, i: usize) -> &Node {
+        &self.nodes[i >> 1].0[i & 1]
+    }
 }
 
 enum BuildNode {
@@ -65,8 +81,10 @@ impl Bvh {
         } else {
             build_recursive(&mut refs, 0)
         };
-        let mut nodes = Vec::with_capacity(2 * triangles.len() / 2 + 1);
-        flatten(&root, &mut nodes);
+        let mut flat = vec![EMPTY_NODE, EMPTY_NODE];
+        flat[0] = leaf_or_placeholder(&root);
+        flatten_children(&root, 0, &mut flat);
+        let nodes = flat.chunks(2).map(|c| NodePair([c[0], *c.get(1).unwrap_or(&EMPTY_NODE)])).collect();
         let tris = refs.iter().map(|r| triangles[r.index as usize].v).collect();
         let prim_ids =
             refs.iter().map(|r| r.index | if triangles[r.index as usize].masked { MASKED_BIT } else { 0 }).collect();
@@ -77,11 +95,11 @@ impl Bvh {
     }
 
     pub fn stats(&self) -> BvhStats {
-        let mut s = BvhStats { nodes: self.nodes.len(), ..Default::default() };
+        let mut s = BvhStats { nodes: 2 * self.nodes.len() - 1, ..Default::default() };
         let root_area = self.bounds.half_area().max(1e-30);
         let mut stack = vec![(0usize, 1usize)];
         while let Some((i, depth)) = stack.pop() {
-            let n = &self.nodes[i];
+            let n = self.node(i);
             let area = Aabb { min: n.min, max: n.max }.half_area() / root_area;
             s.max_depth = s.max_depth.max(depth);
             if n.count > 0 {
@@ -89,8 +107,8 @@ impl Bvh {
                 s.sah_cost += area * n.count as f32;
             } else {
                 s.sah_cost += area * TRAVERSAL_COST;
-                stack.push((i + 1, depth + 1));
                 stack.push((n.offset as usize, depth + 1));
+                stack.push((n.offset as usize + 1, depth + 1));
             }
         }
         s
@@ -107,9 +125,9 @@ impl Bvh {
         let mut stack = [0u32; 64];
         let mut sp = 0usize;
         let mut node_index = 0usize;
-        slab(&self.nodes[0], ray.o, pre.inv_d, tmax)?;
+        slab(self.node(0), ray.o, pre.inv_d, tmax)?;
         loop {
-            let node = &self.nodes[node_index];
+            let node = self.node(node_index);
             if node.count > 0 {
                 let start = node.offset as usize;
                 for i in start..start + node.count as usize {
@@ -128,10 +146,10 @@ impl Bvh {
                     }
                 }
             } else {
-                let a = node_index + 1;
-                let b = node.offset as usize;
-                let ta = slab(&self.nodes[a], ray.o, pre.inv_d, tmax);
-                let tb = slab(&self.nodes[b], ray.o, pre.inv_d, tmax);
+                let a = node.offset as usize;
+                let b = a + 1;
+                let ta = slab(self.node(a), ray.o, pre.inv_d, tmax);
+                let tb = slab(self.node(b), ray.o, pre.inv_d, tmax);
                 match (ta, tb) {
                     (Some(ta), Some(tb)) => {
                         let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
@@ -175,7 +193,26 @@ impl Accelerator for Bvh {
     }
 }
 
+#[inline(always)]
+fn fmin(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+#[inline(always)]
+fn fmax(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
 /// Entry distance of the ray into the node's box, if it enters before `tmax`.
+/// `inv_d` is finite (see `RayPrecomp`), so no operand here is NaN.
 #[inline(always)]
 fn slab(n: &Node, o: Vec3, inv_d: Vec3, tmax: f32) -> Option<f32> {
     let tx1 = (n.min.x - o.x) * inv_d.x;
@@ -184,9 +221,8 @@ fn slab(n: &Node, o: Vec3, inv_d: Vec3, tmax: f32) -> Option<f32> {
     let ty2 = (n.max.y - o.y) * inv_d.y;
     let tz1 = (n.min.z - o.z) * inv_d.z;
     let tz2 = (n.max.z - o.z) * inv_d.z;
-    // NaN (0·∞ on a slab boundary) must not widen the interval: max/min ignore NaN operands.
-    let tnear = tx1.min(tx2).max(ty1.min(ty2)).max(tz1.min(tz2)).max(0.0);
-    let tfar = tx1.max(tx2).min(ty1.max(ty2)).min(tz1.max(tz2)).min(tmax);
+    let tnear = fmax(fmax(fmax(fmin(tx1, tx2), fmin(ty1, ty2)), fmin(tz1, tz2)), 0.0);
+    let tfar = fmin(fmin(fmin(fmax(tx1, tx2), fmax(ty1, ty2)), fmax(tz1, tz2)), tmax);
     // Widen by a few ulps so that flat boxes (axis-aligned walls) are not missed.
     if tnear <= tfar * 1.000_000_4 {
         Some(tnear)
@@ -308,20 +344,26 @@ fn partition(refs: &mut [PrimRef], pred: impl Fn(&PrimRef) -> bool) -> usize {
     i
 }
 
-fn flatten(node: &BuildNode, out: &mut Vec<Node>) -> usize {
-    let index = out.len();
+/// The flat node for `node`: complete for leaves; interior nodes get their child offset
+/// from `flatten_children`.
+fn leaf_or_placeholder(node: &BuildNode) -> Node {
     match node {
         BuildNode::Leaf { bounds, start, count } => {
-            out.push(Node { min: bounds.min, offset: *start as u32, max: bounds.max, count: *count as u32 })
+            Node { min: bounds.min, offset: *start as u32, max: bounds.max, count: *count as u32 }
         }
-        BuildNode::Interior { bounds, children } => {
-            out.push(Node { min: bounds.min, offset: 0, max: bounds.max, count: 0 });
-            flatten(&children[0], out);
-            let second = flatten(&children[1], out);
-            out[index].offset = second as u32;
-        }
+        BuildNode::Interior { bounds, .. } => Node { min: bounds.min, offset: 0, max: bounds.max, count: 0 },
     }
-    index
+}
+
+/// Writes the children of the interior node at `index` as an adjacent pair, depth first.
+fn flatten_children(node: &BuildNode, index: usize, out: &mut Vec<Node>) {
+    let BuildNode::Interior { children, .. } = node else { return };
+    let first = out.len();
+    out.push(leaf_or_placeholder(&children[0]));
+    out.push(leaf_or_placeholder(&children[1]));
+    out[index].offset = first as u32;
+    flatten_children(&children[0], first, out);
+    flatten_children(&children[1], first + 1, out);
 }
 
 #[cfg(test)]

@@ -1,9 +1,13 @@
 //! Rays, hits and the acceleration structures that find them.
 
 mod bvh;
+#[cfg(feature = "embree")]
+mod embree;
 mod triangle;
 
 pub use bvh::{Bvh, BvhStats};
+#[cfg(feature = "embree")]
+pub use embree::{EmbreeAccel, EmbreeError};
 pub use triangle::{intersect_triangle, RayPrecomp};
 
 use crate::math::{Aabb, Vec3};

@@ -45,7 +45,7 @@ impl RayPrecomp {
 }
 
 /// Returns `(t, b1, b2)` for a hit with `0 < t < tmax`.
-#[inline]
+#[inline(always)]
 pub fn intersect_triangle(ray: &Ray, pre: &RayPrecomp, v: &[Vec3; 3], tmax: f32) -> Option<(f32, f32, f32)> {
     let a = v[0] - ray.o;
     let b = v[1] - ray.o;

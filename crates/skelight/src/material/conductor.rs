@@ -2,7 +2,7 @@
 
 use super::fresnel::fresnel_conductor;
 use super::microfacet::Microfacet;
-use super::{BsdfCtx, BsdfModel, BsdfSample};
+use super::{weighted_sample, BsdfCtx, BsdfModel, BsdfSample};
 use crate::color::Rgb;
 use crate::math::{vec3, Vec2, Vec3};
 use crate::texture::Texture;
@@ -66,13 +66,7 @@ impl BsdfModel for RoughConductor {
         if wi.z <= 0.0 {
             return None;
         }
-        let (m, pdf_m) = self.distribution.sample(wi, u);
-        let wo = wi.reflect(m);
-        if wo.z <= 0.0 || pdf_m <= 0.0 {
-            return None;
-        }
-        let pdf = pdf_m / (4.0 * wo.dot(m).abs());
-        let f = self.eval(ctx, wi, wo);
-        Some(BsdfSample { wo, weight: f / pdf, pdf, delta: false })
+        let (m, _) = self.distribution.sample(wi, u);
+        weighted_sample(self, ctx, wi, wi.reflect(m))
     }
 }

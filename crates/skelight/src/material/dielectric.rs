@@ -3,7 +3,7 @@
 
 use super::fresnel::{fresnel_dielectric, refract};
 use super::microfacet::Microfacet;
-use super::{BsdfCtx, BsdfModel, BsdfSample, TransportMode};
+use super::{weighted_sample, BsdfCtx, BsdfModel, BsdfSample, TransportMode};
 use crate::color::Rgb;
 use crate::math::{vec3, Vec2, Vec3};
 
@@ -166,11 +166,7 @@ impl BsdfModel for RoughDielectric {
             }
             wo
         };
-        let pdf = self.pdf(ctx, wi, wo);
-        if !(pdf > 0.0) {
-            return None;
-        }
-        Some(BsdfSample { wo, weight: self.eval(ctx, wi, wo) / pdf, pdf, delta: false })
+        weighted_sample(self, ctx, wi, wo)
     }
     fn two_sided_transmission(&self) -> bool {
         true

@@ -1,9 +1,9 @@
 //! Lambertian and Oren–Nayar rough diffuse reflection.
 
-use super::{BsdfCtx, BsdfModel, BsdfSample};
+use super::{upper_cosine_pdf, weighted_sample, BsdfCtx, BsdfModel, BsdfSample};
 use crate::color::Rgb;
 use crate::math::{Vec2, Vec3, INV_PI};
-use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
+use crate::sampling::cosine_hemisphere;
 use crate::texture::Texture;
 
 #[derive(Clone, Debug)]
@@ -16,13 +16,7 @@ pub(crate) fn sample_cosine<M: BsdfModel + ?Sized>(model: &M, ctx: &BsdfCtx, wi:
     if wi.z <= 0.0 {
         return None;
     }
-    let wo = cosine_hemisphere(u);
-    let pdf = cosine_hemisphere_pdf(wo.z);
-    if pdf <= 0.0 {
-        return None;
-    }
-    let f = model.eval(ctx, wi, wo);
-    Some(BsdfSample { wo, weight: f / pdf, pdf, delta: false })
+    weighted_sample(model, ctx, wi, cosine_hemisphere(u))
 }
 
 impl BsdfModel for Diffuse {
@@ -33,11 +27,7 @@ impl BsdfModel for Diffuse {
         self.reflectance.eval(ctx.uv) * (INV_PI * wo.z)
     }
     fn pdf(&self, _: &BsdfCtx, wi: Vec3, wo: Vec3) -> f32 {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            0.0
-        } else {
-            cosine_hemisphere_pdf(wo.z)
-        }
+        upper_cosine_pdf(wi, wo)
     }
     fn sample(&self, ctx: &BsdfCtx, wi: Vec3, _: f32, u: Vec2) -> Option<BsdfSample> {
         sample_cosine(self, ctx, wi, u)
@@ -71,11 +61,7 @@ impl BsdfModel for RoughDiffuse {
         self.reflectance.eval(ctx.uv) * (INV_PI * wo.z * on)
     }
     fn pdf(&self, _: &BsdfCtx, wi: Vec3, wo: Vec3) -> f32 {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            0.0
-        } else {
-            cosine_hemisphere_pdf(wo.z)
-        }
+        upper_cosine_pdf(wi, wo)
     }
     fn sample(&self, ctx: &BsdfCtx, wi: Vec3, _: f32, u: Vec2) -> Option<BsdfSample> {
         sample_cosine(self, ctx, wi, u)

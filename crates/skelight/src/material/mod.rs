@@ -66,6 +66,35 @@ pub trait BsdfModel {
     }
 }
 
+/// Completes a sample of a non-delta model whose direction `wo` was drawn by any of its
+/// lobes: density from `pdf` (the mixture over all lobes), weight eval/pdf. Directions
+/// below the surface are rejected unless the model transmits.
+pub(crate) fn weighted_sample<M: BsdfModel + ?Sized>(
+    model: &M,
+    ctx: &BsdfCtx,
+    wi: Vec3,
+    wo: Vec3,
+) -> Option<BsdfSample> {
+    if wo.z * wi.z <= 0.0 && !model.two_sided_transmission() {
+        return None;
+    }
+    let pdf = model.pdf(ctx, wi, wo);
+    if !(pdf > 0.0) || !pdf.is_finite() {
+        return None;
+    }
+    Some(BsdfSample { wo, weight: model.eval(ctx, wi, wo) / pdf, pdf, delta: false })
+}
+
+/// Density of cosine-weighted sampling, for upper-hemisphere pairs only.
+#[inline]
+pub(crate) fn upper_cosine_pdf(wi: Vec3, wo: Vec3) -> f32 {
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        0.0
+    } else {
+        crate::sampling::cosine_hemisphere_pdf(wo.z)
+    }
+}
+
 #[derive(Clone, Debug)]
 pub enum Bsdf {
     Diffuse(Diffuse),

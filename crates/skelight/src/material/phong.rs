@@ -1,6 +1,6 @@
 //! Mitsuba 0.6's energy-normalised modified Phong model (the seeds' glossy material).
 
-use super::{BsdfCtx, BsdfModel, BsdfSample};
+use super::{weighted_sample, BsdfCtx, BsdfModel, BsdfSample};
 use crate::color::Rgb;
 use crate::math::{vec3, Frame, Vec2, Vec3, INV_2PI, INV_PI, PI};
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
@@ -64,13 +64,6 @@ impl BsdfModel for Phong {
         } else {
             cosine_hemisphere(u2)
         };
-        if wo.z <= 0.0 {
-            return None;
-        }
-        let pdf = self.pdf(ctx, wi, wo);
-        if !(pdf > 0.0) {
-            return None;
-        }
-        Some(BsdfSample { wo, weight: self.eval(ctx, wi, wo) / pdf, pdf, delta: false })
+        weighted_sample(self, ctx, wi, wo)
     }
 }

@@ -3,7 +3,7 @@
 
 use super::fresnel::{fresnel_dielectric, fresnel_diffuse_reflectance, refract};
 use super::microfacet::Microfacet;
-use super::{BsdfCtx, BsdfModel, BsdfSample};
+use super::{weighted_sample, BsdfCtx, BsdfModel, BsdfSample};
 use crate::color::Rgb;
 use crate::math::{vec3, Vec2, Vec3, INV_PI};
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf, Rng};
@@ -231,13 +231,6 @@ impl BsdfModel for RoughPlastic {
         } else {
             cosine_hemisphere(u2)
         };
-        if wo.z <= 0.0 {
-            return None;
-        }
-        let pdf = self.pdf(ctx, wi, wo);
-        if !(pdf > 0.0) {
-            return None;
-        }
-        Some(BsdfSample { wo, weight: self.eval(ctx, wi, wo) / pdf, pdf, delta: false })
+        weighted_sample(self, ctx, wi, wo)
     }
 }

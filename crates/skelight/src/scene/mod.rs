@@ -281,6 +281,20 @@ impl Scene {
     pub fn triangle_count(&self) -> usize {
         self.tri_owner.len()
     }
+    /// Every triangle in global order, as accelerators take them.
+    pub fn build_triangles(&self) -> Vec<BuildTriangle> {
+        self.tri_owner
+            .iter()
+            .map(|&(m, t)| {
+                let mesh = &self.meshes[m as usize];
+                BuildTriangle { v: mesh.triangle(t as usize), masked: mesh.alpha.is_some() }
+            })
+            .collect()
+    }
+    /// Replaces the ray-tracing backend (it must have been built from `build_triangles`).
+    pub fn set_accelerator(&mut self, accel: Box<dyn Accelerator>) {
+        self.accel = accel;
+    }
 
     fn filter(&self) -> AlphaFilter<'_> {
         AlphaFilter { meshes: &self.meshes, owner: &self.tri_owner }

@@ -283,24 +283,31 @@ impl Loader {
         }
     }
 
-    fn vector3(&self, p: Node) -> R<Vec3> {
+    /// Three numbers from `value="a"` / `value="x, y, z"` or from `x`, `y`, `z` attributes
+    /// (missing ones take `default`).
+    fn triple(&self, p: Node, default: f64) -> R<[f64; 3]> {
         if let Some(v) = self.attr(p, "value")? {
             let xs = self.numbers(p, &v)?;
             return match xs.as_slice() {
-                [a] => Ok(Vec3::splat(*a)),
-                [x, y, z] => Ok(vec3(*x, *y, *z)),
-                _ => Err(self.err(p, "expected 3 values")),
+                [a] => Ok([*a as f64; 3]),
+                [x, y, z] => Ok([*x as f64, *y as f64, *z as f64]),
+                _ => Err(self.err(p, "expected 1 or 3 values")),
             };
         }
-        let c = |k: &str| -> R<f32> {
+        let c = |k: &str| -> R<f64> {
             Ok(self
                 .attr(p, k)?
-                .map(|s| s.trim().parse::<f32>())
+                .map(|s| s.trim().parse::<f64>())
                 .transpose()
                 .map_err(|_| self.err(p, format!("bad '{k}'")))?
-                .unwrap_or(0.0))
+                .unwrap_or(default))
         };
-        Ok(vec3(c("x")?, c("y")?, c("z")?))
+        Ok([c("x")?, c("y")?, c("z")?])
+    }
+
+    fn vector3(&self, p: Node) -> R<Vec3> {
+        let [x, y, z] = self.triple(p, 0.0)?;
+        Ok(vec3(x as f32, y as f32, z as f32))
     }
 
     fn point(&self, n: Node, name: &str, default: Vec3) -> R<Vec3> {
@@ -316,25 +323,7 @@ impl Loader {
         };
         let mut acc = Transform::IDENTITY;
         for op in t.children().filter(|c| c.is_element()) {
-            let xyz = |default: f64| -> R<[f64; 3]> {
-                if let Some(v) = self.attr(op, "value")? {
-                    let xs = self.numbers(op, &v)?;
-                    return match xs.as_slice() {
-                        [a] => Ok([*a as f64; 3]),
-                        [x, y, z] => Ok([*x as f64, *y as f64, *z as f64]),
-                        _ => Err(self.err(op, "expected 1 or 3 values")),
-                    };
-                }
-                let c = |k: &str| -> R<f64> {
-                    Ok(self
-                        .attr(op, k)?
-                        .map(|s| s.trim().parse::<f64>())
-                        .transpose()
-                        .map_err(|_| self.err(op, format!("bad '{k}'")))?
-                        .unwrap_or(default))
-                };
-                Ok([c("x")?, c("y")?, c("z")?])
-            };
+            let xyz = |default: f64| self.triple(op, default);
             let vec_attr = |k: &str| -> R<Option<[f64; 3]>> {
                 let Some(v) = self.attr(op, k)? else {
                     return Ok(None);

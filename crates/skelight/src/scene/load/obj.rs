@@ -55,6 +55,13 @@ fn parse_f32s<const N: usize>(path: &Path, line: usize, parts: &[&str]) -> Resul
     Ok(out)
 }
 
+/// Keyword and arguments of an OBJ/MTL line, without its comment; `None` for blank lines.
+fn statement(raw: &str) -> Option<(&str, Vec<&str>)> {
+    let mut it = raw.split('#').next().unwrap_or("").split_whitespace();
+    let kw = it.next()?;
+    Some((kw, it.collect()))
+}
+
 /// Resolves a 1-based or negative OBJ index against `count` elements.
 fn resolve(path: &Path, line: usize, s: &str, count: usize, what: &str) -> Result<usize, LoadError> {
     let i: i64 = s.parse().map_err(|_| LoadError::at(path, line, format!("bad {what} index '{s}'")))?;
@@ -75,10 +82,7 @@ pub fn load_obj(path: &Path) -> Result<ObjFile, LoadError> {
     let mut group_of: HashMap<Option<String>, usize> = HashMap::new();
     for (ln, raw) in text.lines().enumerate() {
         let line = ln + 1;
-        let l = raw.split('#').next().unwrap_or("").trim();
-        let mut it = l.split_whitespace();
-        let Some(kw) = it.next() else { continue };
-        let parts: Vec<&str> = it.collect();
+        let Some((kw, parts)) = statement(raw) else { continue };
         match kw {
             "v" => v.push(Vec3::from(parse_f32s::<3>(path, line, &parts)?)),
             "vt" => {
@@ -221,10 +225,7 @@ pub fn load_mtl(path: &Path) -> Result<Vec<MtlMaterial>, LoadError> {
     let mut out: Vec<MtlMaterial> = Vec::new();
     for (ln, raw) in text.lines().enumerate() {
         let line = ln + 1;
-        let l = raw.split('#').next().unwrap_or("").trim();
-        let mut it = l.split_whitespace();
-        let Some(kw) = it.next() else { continue };
-        let parts: Vec<&str> = it.collect();
+        let Some((kw, parts)) = statement(raw) else { continue };
         if kw == "newmtl" {
             out.push(MtlMaterial { name: parts.join(" "), ..Default::default() });
             continue;

@@ -1,0 +1,94 @@
+//! `skelight bench`: ray-tracing and estimator throughput, measured in one run so that
+//! backends can be compared as ratios on the same machine.
+
+use std::time::{Duration, Instant};
+
+use rayon::prelude::*;
+use skelight::geometry::{offset_origin, Accelerator, BuildTriangle, Bvh, NoFilter, Ray};
+use skelight::math::Vec3;
+use skelight::sampling::{uniform_sphere, uniform_triangle, Distribution1D, Rng};
+
+/// Incoherent rays: origins on the surfaces (area-weighted), directions uniform on the
+/// sphere — what secondary bounces of a path tracer look like to the accelerator.
+pub fn incoherent_rays(tris: &[BuildTriangle], n: usize, seed: u64) -> Vec<Ray> {
+    let areas: Vec<f32> = tris.iter().map(|t| 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length()).collect();
+    let dist = Distribution1D::new(&areas);
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let mut rng = Rng::new(seed, i as u64, 0);
+            let (k, _, rem) = dist.sample_discrete(rng.next_f32());
+            let b = uniform_triangle(skelight::math::vec2(rem, rng.next_f32()));
+            let [a, bb, c] = tris[k].v;
+            let p = a * (1.0 - b.x - b.y) + bb * b.x + c * b.y;
+            let ng = (bb - a).cross(c - a);
+            let ng = if ng.length_squared() > 0.0 { ng.normalize() } else { Vec3::ZERO };
+            let d = uniform_sphere(rng.next_2d());
+            Ray::new(offset_origin(p, ng, d), d)
+        })
+        .collect()
+}
+
+pub struct RayResult {
+    pub build: Duration,
+    pub closest_mrays: f64,
+    pub any_mrays: f64,
+    pub hits: usize,
+}
+
+fn best_of<T>(runs: usize, mut f: impl FnMut() -> (Duration, T)) -> (Duration, T) {
+    let mut best = f();
+    for _ in 1..runs {
+        let r = f();
+        if r.0 < best.0 {
+            best = r;
+        }
+    }
+    best
+}
+
+/// Times building with `build` (best of 3) and tracing `rays` (best of 3).
+pub fn measure(
+    tris: &[BuildTriangle],
+    rays: &[Ray],
+    build: &dyn Fn(&[BuildTriangle]) -> Box<dyn Accelerator>,
+) -> RayResult {
+    let (build_time, accel) = best_of(3, || {
+        let t = Instant::now();
+        let a = build(tris);
+        (t.elapsed(), a)
+    });
+    let (closest, hits) = best_of(3, || {
+        let t = Instant::now();
+        let hits = rays
+            .par_chunks(4096)
+            .map(|c| c.iter().filter(|r| accel.intersect(r, &NoFilter).is_some()).count())
+            .sum::<usize>();
+        (t.elapsed(), hits)
+    });
+    let (any, _) = best_of(3, || {
+        let t = Instant::now();
+        let n = rays.par_chunks(4096).map(|c| c.iter().filter(|r| accel.occluded(r, &NoFilter)).count()).sum::<usize>();
+        (t.elapsed(), n)
+    });
+    let m = rays.len() as f64 / 1e6;
+    RayResult { build: build_time, closest_mrays: m / closest.as_secs_f64(), any_mrays: m / any.as_secs_f64(), hits }
+}
+
+/// Builds an accelerator over the scene's triangles.
+pub type Builder = Box<dyn Fn(&[BuildTriangle]) -> Box<dyn Accelerator>>;
+
+/// The accelerators compiled into this binary, by name.
+#[allow(unused_mut)] // mutated only with the `embree` feature
+pub fn backends() -> Vec<(&'static str, Builder)> {
+    let mut v: Vec<(&'static str, Builder)> =
+        vec![("bvh", Box::new(|t: &[BuildTriangle]| Box::new(Bvh::build(t)) as Box<dyn Accelerator>))];
+    #[cfg(feature = "embree")]
+    v.push((
+        "embree",
+        Box::new(|t: &[BuildTriangle]| {
+            Box::new(skelight::geometry::EmbreeAccel::build(t).expect("Embree device")) as Box<dyn Accelerator>
+        }),
+    ));
+    v
+}
