@@ -1,6 +1,7 @@
 //! Scene file readers. Every error names the file (and line, where there is one) and says
 //! what is wrong; no input makes the loader panic.
 
+pub mod gltf;
 pub mod mitsuba;
 pub mod native;
 pub mod obj;
@@ -67,10 +68,11 @@ pub fn load_description(path: &Path, defines: &[(String, String)]) -> Result<Sce
         "xml" => mitsuba::Loader::new(&root, defines).load(path),
         "toml" => native::load_native(path),
         "obj" | "ply" => native::load_mesh_file(path),
+        "gltf" | "glb" => self::gltf::load_gltf(path),
         other => Err(LoadError::at(
             path,
             0,
-            format!("unsupported scene format '.{other}' (expected .xml, .toml, .obj or .ply)"),
+            format!("unsupported scene format '.{other}' (expected .xml, .toml, .gltf, .glb, .obj or .ply)"),
         )),
     }
 }
