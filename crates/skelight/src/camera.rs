@@ -180,6 +180,31 @@ impl Camera {
         Some(vec2(sx * self.width as f32, sy * self.height as f32))
     }
 
+    /// Where a ray arriving from the scene crosses the thin-lens aperture, if it does:
+    /// (distance along the ray, lens point, film position). Pinholes have no area to hit.
+    pub fn intersect_lens(&self, ray: &Ray) -> Option<(f32, Vec3, Vec2)> {
+        if self.aperture_radius <= 0.0 {
+            return None;
+        }
+        let inv = self.to_world.inverse();
+        let (o, d) = (inv.point(ray.o), inv.vector(ray.d));
+        // Arriving from the front means travelling towards −z in camera space.
+        if d.z >= 0.0 {
+            return None;
+        }
+        let t = -o.z / d.z;
+        if !(t > 0.0 && t < ray.tmax) {
+            return None;
+        }
+        let p = o + d * t;
+        if p.x * p.x + p.y * p.y > self.aperture_radius * self.aperture_radius {
+            return None;
+        }
+        let lens_point = self.to_world.point(vec3(p.x, p.y, 0.0));
+        let raster = self.raster_of(lens_point, -ray.d)?;
+        Some((t, lens_point, raster))
+    }
+
     /// Importance W_e for a ray leaving the lens in world direction `dir`.
     pub fn importance(&self, dir: Vec3) -> f32 {
         let cos = dir.dot(self.forward);
@@ -248,6 +273,21 @@ mod tests {
         let left = cam.generate_ray(vec2(0.0, 16.0), vec2(0.5, 0.5));
         let top = cam.generate_ray(vec2(32.0, 0.0), vec2(0.5, 0.5));
         assert!(left.d.x < 0.0 && top.d.y > 0.0);
+    }
+
+    /// A ray leaving the lens towards the scene, reversed, hits the lens where it left and
+    /// maps to the film position it was generated for.
+    #[test]
+    fn reversed_camera_rays_hit_the_lens() {
+        let cam = camera(0.1);
+        let ray = cam.generate_ray(vec2(20.5, 7.25), vec2(0.9, 0.2));
+        let far = ray.at(5.0);
+        let back = Ray::new(far, -ray.d);
+        let (t, p, raster) = cam.intersect_lens(&back).expect("hits the aperture");
+        assert!((t - 5.0).abs() < 1e-3 && (p - ray.o).length() < 1e-3);
+        assert!((raster.x - 20.5).abs() < 1e-2 && (raster.y - 7.25).abs() < 1e-2, "{raster:?}");
+        assert!(cam.intersect_lens(&ray).is_none(), "leaving rays do not hit it");
+        assert!(camera(0.0).intersect_lens(&back).is_none(), "pinholes have no area");
     }
 
     /// ∫ W_e cosθ dω over the film's directions is 1/lens_area (importance is normalised).
