@@ -8,6 +8,7 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+use skelight::checkpoint::Checkpoint;
 use skelight::eval;
 use skelight::imageio::Image;
 use skelight::integrator::{self, RenderOptions};
@@ -22,10 +23,30 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a scene (Mitsuba XML); without SCENE, the embedded two-room default scene.
+    /// Render a scene (.xml, .gltf/.glb, .toml, .obj, .ply); without SCENE, the embedded
+    /// two-room default scene.
     Render(RenderArgs),
-    /// Error metrics between two images (MAE, RMSE, relMSE, NRMSE).
-    Diff { a: PathBuf, b: PathBuf },
+    /// A long render that checkpoints and resumes after being killed.
+    Reference(ReferenceArgs),
+    /// Error metrics of an image against a reference (MAE, RMSE, relMSE, NRMSE).
+    Diff {
+        image: PathBuf,
+        reference: PathBuf,
+        /// Also write a false-colour relative-error image (black 0 → red ≥ --max-error).
+        #[arg(long)]
+        error_image: Option<PathBuf>,
+        #[arg(long, default_value_t = 0.5)]
+        max_error: f32,
+    },
+    /// Combine independent renders of one scene (weighted by their sample counts).
+    Merge {
+        parts: Vec<PathBuf>,
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Weight every part equally (for images without a recorded sample count).
+        #[arg(long)]
+        equal_weights: bool,
+    },
     /// Measure throughput: ray tracing per backend, or an estimator's samples per second.
     Bench {
         #[command(subcommand)]
@@ -37,6 +58,34 @@ enum Command {
         #[arg(short = 'D', value_parser = parse_define)]
         define: Vec<(String, String)>,
     },
+}
+
+#[derive(clap::Args)]
+struct ReferenceArgs {
+    /// Scene file. Omit for the embedded default scene.
+    scene: Option<PathBuf>,
+    /// Output image (.exr); its checkpoint is OUT.exr.ckpt.
+    #[arg(short, long)]
+    output: PathBuf,
+    #[arg(short, long, default_value = "pt")]
+    integrator: String,
+    /// Total wall time across interruptions (300, 90s, 5m, 2h).
+    #[arg(long, value_parser = parse_duration)]
+    time: Option<Duration>,
+    /// Samples per pixel to reach (with --time: whichever comes first).
+    #[arg(long)]
+    spp: Option<u32>,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// How often to write the checkpoint (and the image so far).
+    #[arg(long, value_parser = parse_duration, default_value = "5m")]
+    checkpoint_every: Duration,
+    #[command(flatten)]
+    setup: SceneSetup,
+    #[arg(short = 'D', value_parser = parse_define)]
+    define: Vec<(String, String)>,
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 #[derive(Subcommand)]
@@ -108,9 +157,9 @@ struct RenderArgs {
     /// Samples per pixel (default: the scene's sampler, or 16 for the default scene).
     #[arg(long, conflicts_with = "time")]
     spp: Option<u32>,
-    /// Render for this many seconds instead of a sample count.
-    #[arg(long)]
-    time: Option<f64>,
+    /// Render for this long instead of a sample count (300, 90s, 5m, 2h).
+    #[arg(long, value_parser = parse_duration)]
+    time: Option<Duration>,
     /// Random seed; equal seeds give identical images, different seeds independent ones.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -226,79 +275,232 @@ fn bench(what: BenchKind) -> Result<()> {
     }
 }
 
-fn render(args: RenderArgs) -> Result<()> {
-    let mut scene = load_scene(args.scene.as_deref(), &args.define)?;
-    args.setup.apply(&mut scene)?;
-    let integrator = integrator::by_name(&args.integrator).with_context(|| {
-        format!("unknown integrator '{}'; available: {}", args.integrator, integrator::INTEGRATORS.join(", "))
-    })?;
-    let time = match args.time {
-        Some(t) if !(t > 0.0 && t.is_finite() && t < 1e7) => {
-            bail!("--time must be a positive number of seconds")
-        }
-        Some(t) => Some(Duration::from_secs_f64(t)),
-        None => None,
+/// Durations as `300` (seconds), `90s`, `5m`, `2h` or `1.5h`.
+fn parse_duration(s: &str) -> Result<Duration, String> {
+    let (num, unit) = match s.trim().char_indices().find(|(_, c)| c.is_ascii_alphabetic()) {
+        Some((i, _)) => (&s.trim()[..i], &s.trim()[i..]),
+        None => (s.trim(), "s"),
     };
-    let spp = match (args.spp, time) {
-        (Some(0), _) => bail!("--spp must be at least 1"),
-        (Some(s), _) => Some(s),
-        (None, Some(_)) => None,
-        (None, None) => Some(if args.scene.is_some() { scene.settings.spp } else { 16 }),
+    let v: f64 = num.trim().parse().map_err(|_| format!("'{s}' is not a duration (e.g. 300, 90s, 5m, 2h)"))?;
+    let secs = match unit {
+        "s" => v,
+        "m" | "min" => v * 60.0,
+        "h" => v * 3600.0,
+        other => return Err(format!("unknown time unit '{other}' in '{s}' (s, m or h)")),
     };
-    let opts = RenderOptions { spp, time, seed: args.seed, threads: args.setup.threads };
-    let (w, h) = (scene.settings.width, scene.settings.height);
-    eprintln!(
-        "{}: {} triangles, {} lights, {}×{}, {} , max depth {}",
-        args.scene
-            .as_deref()
+    if !(secs > 0.0 && secs < 1e8) {
+        return Err(format!("duration '{s}' must be positive"));
+    }
+    Ok(Duration::from_secs_f64(secs))
+}
+
+/// A render ready to run: the scene, its estimator and when to stop.
+struct Job {
+    scene: Scene,
+    integrator: Box<dyn integrator::Integrator>,
+    opts: RenderOptions,
+    label: String,
+}
+
+impl Job {
+    fn new(
+        scene_path: Option<&Path>,
+        define: &[(String, String)],
+        setup: &SceneSetup,
+        name: &str,
+        spp: Option<u32>,
+        time: Option<Duration>,
+        seed: u64,
+    ) -> Result<Job> {
+        let mut scene = load_scene(scene_path, define)?;
+        setup.apply(&mut scene)?;
+        let integrator = integrator::by_name(name).with_context(|| {
+            format!("unknown integrator '{name}'; available: {}", integrator::INTEGRATORS.join(", "))
+        })?;
+        let spp = match (spp, time) {
+            (Some(0), _) => bail!("--spp must be at least 1"),
+            (Some(s), _) => Some(s),
+            (None, Some(_)) => None,
+            (None, None) => Some(if scene_path.is_some() { scene.settings.spp } else { 16 }),
+        };
+        let label = scene_path
             .map(|p| p.display().to_string())
-            .unwrap_or_else(|| "default scene (two rooms, door ajar)".into()),
-        scene.triangle_count(),
-        scene.lights.len(),
-        w,
-        h,
-        integrator.name(),
-        scene.settings.max_depth
-    );
-    let bar = if args.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(spp.map(u64::from).unwrap_or_else(|| (time.unwrap().as_secs_f64() * 10.0) as u64))
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} {msg}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    let result = integrator::render(&scene, integrator.as_ref(), &opts, None, |p, _| {
-        match (p.spp_target, p.time_budget) {
-            (Some(_), None) => bar.set_position(p.spp_done as u64),
-            (_, Some(b)) => bar.set_position(
-                ((p.elapsed.as_secs_f64() / b.as_secs_f64()).min(1.0) * bar.length().unwrap_or(1) as f64) as u64,
-            ),
-            _ => {}
+            .unwrap_or_else(|| "default scene (two rooms, door ajar)".into());
+        let opts = RenderOptions { spp, time, seed, threads: setup.threads };
+        Ok(Job { scene, integrator, opts, label })
+    }
+
+    /// Identifies what is rendered, so a checkpoint is resumed only by the same render.
+    fn key(&self) -> String {
+        let s = &self.scene.settings;
+        format!(
+            "{}|{}|seed {}|{}x{}|depth {}",
+            self.label,
+            self.integrator.name(),
+            self.opts.seed,
+            s.width,
+            s.height,
+            s.max_depth
+        )
+    }
+
+    /// Renders with a progress bar; `on_pass` sees every pass (for checkpoints).
+    fn run(
+        &self,
+        resume: Option<(skelight::film::Film, u32)>,
+        quiet: bool,
+        mut on_pass: impl FnMut(&integrator::Progress, &skelight::film::Film) -> Result<()>,
+    ) -> Result<integrator::RenderResult> {
+        let s = &self.scene.settings;
+        eprintln!(
+            "{}: {} triangles, {} lights, {}×{}, {}, max depth {}",
+            self.label,
+            self.scene.triangle_count(),
+            self.scene.lights.len(),
+            s.width,
+            s.height,
+            self.integrator.name(),
+            s.max_depth
+        );
+        let spp = self.opts.spp;
+        let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(spp.map(u64::from).unwrap_or(1000)) };
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {msg}")
+                .expect("valid template")
+                .progress_chars("=> "),
+        );
+        let mut failure = None;
+        let result = integrator::render(&self.scene, self.integrator.as_ref(), &self.opts, resume, |p, film| {
+            let fraction = match (p.spp_target, p.time_budget) {
+                (Some(t), None) => p.spp_done as f64 / t as f64,
+                (_, Some(b)) => p.elapsed.as_secs_f64() / b.as_secs_f64(),
+                _ => 0.0,
+            };
+            bar.set_position((fraction.min(1.0) * bar.length().unwrap_or(1) as f64) as u64);
+            let eta = if fraction > 0.0 { p.elapsed.as_secs_f64() * (1.0 / fraction.min(1.0) - 1.0) } else { 0.0 };
+            bar.set_message(format!(
+                "{} spp, {:.2} Msamples/s, ETA {:.0} s",
+                p.spp_done,
+                p.samples_per_second / 1e6,
+                eta
+            ));
+            match on_pass(p, film) {
+                Ok(()) => true,
+                Err(e) => {
+                    failure = Some(e);
+                    false
+                }
+            }
+        })?;
+        bar.finish_and_clear();
+        if let Some(e) = failure {
+            return Err(e);
         }
-        bar.set_message(format!("{} spp, {:.2} Msamples/s", p.spp_done, p.samples_per_second / 1e6));
-        true
-    })?;
-    bar.finish_and_clear();
-    let img = result.film.image();
-    img.save_exr(&args.output).with_context(|| format!("writing {}", args.output.display()))?;
-    let png = args.output.with_extension("png");
-    img.save_png(&png, args.exposure)?;
-    let secs = result.elapsed.as_secs_f64();
+        Ok(result)
+    }
+}
+
+/// Writes OUT.exr (with its sample count) and OUT.png; returns the image.
+fn write_outputs(film: &skelight::film::Film, spp: u32, output: &Path, exposure: f32) -> Result<Image> {
+    let img = film.image();
+    img.save_exr_with(output, &[("skelight.spp", spp as f64)])
+        .with_context(|| format!("writing {}", output.display()))?;
+    img.save_png(&output.with_extension("png"), exposure)?;
+    Ok(img)
+}
+
+fn summary(r: &integrator::RenderResult, pixels: usize, img: &Image, output: &Path) {
+    let secs = r.elapsed.as_secs_f64();
+    let m = img.mean();
     eprintln!(
         "done: {} spp in {:.2} s ({:.2} Msamples/s), mean RGB {:.4} {:.4} {:.4}, {} non-finite samples rejected → {} and {}",
-        result.spp,
+        r.spp,
         secs,
-        (result.spp as f64 * (w * h) as f64) / secs.max(1e-9) / 1e6,
-        img.mean().r,
-        img.mean().g,
-        img.mean().b,
-        result.film.rejected,
-        args.output.display(),
-        png.display()
+        r.spp as f64 * pixels as f64 / secs.max(1e-9) / 1e6,
+        m.r,
+        m.g,
+        m.b,
+        r.film.rejected,
+        output.display(),
+        output.with_extension("png").display()
     );
+}
+
+fn render(args: RenderArgs) -> Result<()> {
+    let job =
+        Job::new(args.scene.as_deref(), &args.define, &args.setup, &args.integrator, args.spp, args.time, args.seed)?;
+    let r = job.run(None, args.quiet, |_, _| Ok(()))?;
+    let img = write_outputs(&r.film, r.spp, &args.output, args.exposure)?;
+    summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
+    Ok(())
+}
+
+/// Long render that checkpoints to OUT.exr.ckpt and resumes from it after an interruption.
+fn reference(args: ReferenceArgs) -> Result<()> {
+    let job =
+        Job::new(args.scene.as_deref(), &args.define, &args.setup, &args.integrator, args.spp, args.time, args.seed)?;
+    if job.opts.spp.is_none() && job.opts.time.is_none() {
+        bail!("give --time or --spp");
+    }
+    let ckpt_path = PathBuf::from(format!("{}.ckpt", args.output.display()));
+    let key = job.key();
+    let mut elapsed_before = Duration::ZERO;
+    let mut resume = None;
+    if ckpt_path.exists() {
+        let c = Checkpoint::load(&ckpt_path).map_err(anyhow::Error::msg)?;
+        if c.key != key {
+            bail!("{} belongs to another render ({}); remove it or choose another output", ckpt_path.display(), c.key);
+        }
+        eprintln!("resuming from {} ({} spp, {:.1} s done)", ckpt_path.display(), c.spp, c.elapsed.as_secs_f64());
+        elapsed_before = c.elapsed;
+        resume = Some((c.film, c.spp));
+    }
+    let mut job = job;
+    if let Some(t) = job.opts.time {
+        job.opts.time = Some(t.saturating_sub(elapsed_before).max(Duration::from_millis(1)));
+    }
+    let mut last = std::time::Instant::now();
+    let save = |film: &skelight::film::Film, spp: u32, elapsed: Duration| -> Result<()> {
+        Checkpoint { key: key.clone(), spp, elapsed: elapsed_before + elapsed, film: film.clone() }
+            .save(&ckpt_path)
+            .map_err(anyhow::Error::msg)?;
+        write_outputs(film, spp, &args.output, 0.0).map(|_| ())
+    };
+    let r = job.run(resume, args.quiet, |p, film| {
+        if last.elapsed() >= args.checkpoint_every {
+            save(film, p.spp_done, p.elapsed)?;
+            last = std::time::Instant::now();
+        }
+        Ok(())
+    })?;
+    save(&r.film, r.spp, r.elapsed)?;
+    let img = write_outputs(&r.film, r.spp, &args.output, 0.0)?;
+    summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
+    eprintln!("checkpoint kept at {} (rerun with a larger --spp or --time to extend)", ckpt_path.display());
+    Ok(())
+}
+
+/// Merges independent renders of one scene, weighted by their sample counts.
+fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
+    let mut loaded = Vec::new();
+    for p in parts {
+        let (img, attrs) = Image::load_exr_with_attributes(p)?;
+        let spp = attrs.iter().find(|(k, _)| k == "skelight.spp").map(|a| a.1);
+        let n = match (spp, equal_weights) {
+            (_, true) => 1.0,
+            (Some(n), false) => n,
+            (None, false) => bail!(
+                "{}: no sample count (skelight.spp) in its header; use --equal-weights for foreign images",
+                p.display()
+            ),
+        };
+        loaded.push((img, n));
+    }
+    let total: f64 = loaded.iter().map(|l| l.1).sum();
+    let img = eval::merge_weighted(&loaded).map_err(anyhow::Error::msg)?;
+    img.save_exr_with(output, &[("skelight.spp", total)])?;
+    img.save_png(&output.with_extension("png"), 0.0)?;
+    eprintln!("merged {} images ({} spp in all) → {}", loaded.len(), total, output.display());
     Ok(())
 }
 
@@ -307,10 +509,15 @@ fn main() {
     let r = match cli.command {
         Command::Render(a) => render(a),
         Command::Bench { what } => bench(what),
-        Command::Diff { a, b } => (|| {
-            let ia = Image::load(&a)?;
-            let ib = Image::load(&b)?;
+        Command::Reference(a) => reference(a),
+        Command::Merge { parts, output, equal_weights } => merge(&parts, &output, equal_weights),
+        Command::Diff { image, reference, error_image, max_error } => (|| {
+            let ia = Image::load(&image)?;
+            let ib = Image::load(&reference)?;
             let m = eval::metrics(&ia, &ib)?;
+            if let Some(p) = &error_image {
+                eval::error_image(&ia, &ib, max_error)?.save(p)?;
+            }
             println!(
                 "MAE {:.6e}  RMSE {:.6e}  relMSE {:.6e}  NRMSE {:.6e}  (max over RGB)",
                 m.mae, m.rmse, m.relmse, m.nrmse

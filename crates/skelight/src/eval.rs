@@ -142,6 +142,62 @@ fn weighted_t(r1: &Image, r2: &Image, reference: &Image, block: usize, weight: i
     }
 }
 
+/// Combines independent estimates of one image, each weighted by its sample count:
+/// Σ nᵢ·imageᵢ / Σ nᵢ (the estimate a single render of Σ nᵢ samples would give).
+pub fn merge_weighted(parts: &[(Image, f64)]) -> Result<Image, String> {
+    let (first, _) = parts.first().ok_or("nothing to merge")?;
+    let total: f64 = parts.iter().map(|p| p.1).sum();
+    if !(total > 0.0) || parts.iter().any(|p| !(p.1 >= 0.0)) {
+        return Err("sample counts must be positive".into());
+    }
+    let mut acc = vec![[0.0f64; 3]; first.pixels.len()];
+    for (img, n) in parts {
+        if (img.width, img.height) != (first.width, first.height) {
+            return Err(format!("sizes differ: {}×{} vs {}×{}", img.width, img.height, first.width, first.height));
+        }
+        for (a, p) in acc.iter_mut().zip(&img.pixels) {
+            for (c, v) in p.to_array().iter().enumerate() {
+                a[c] += n * *v as f64;
+            }
+        }
+    }
+    let pixels = acc.iter().map(|a| Rgb::from_array(a.map(|v| (v / total) as f32))).collect();
+    Ok(Image { width: first.width, height: first.height, pixels })
+}
+
+/// False-colour relative error |a−r|/(r+ε) on luminance, ε = 1 % of the reference mean:
+/// black (0) through blue, green, yellow to red (≥ `max`).
+pub fn error_image(img: &Image, reference: &Image, max: f32) -> Result<Image, SizeMismatch> {
+    if img.width != reference.width || img.height != reference.height {
+        return Err(SizeMismatch(img.width, img.height, reference.width, reference.height));
+    }
+    let eps = 0.01 * reference.mean().luminance().max(1e-6);
+    let ramp = [
+        Rgb::BLACK,
+        Rgb::from_array([0.0, 0.0, 1.0]),
+        Rgb::from_array([0.0, 1.0, 0.0]),
+        Rgb::from_array([1.0, 1.0, 0.0]),
+        Rgb::from_array([1.0, 0.0, 0.0]),
+    ];
+    let pixels = img
+        .pixels
+        .iter()
+        .zip(&reference.pixels)
+        .map(|(a, r)| {
+            let e = (a.luminance() - r.luminance()).abs() / (r.luminance().abs() + eps);
+            let x = if e.is_finite() {
+                (e / max).clamp(0.0, 1.0) * (ramp.len() - 1) as f32
+            } else {
+                (ramp.len() - 1) as f32
+            };
+            let i = (x as usize).min(ramp.len() - 2);
+            let f = x - i as f32;
+            ramp[i] * (1.0 - f) + ramp[i + 1] * f
+        })
+        .collect();
+    Ok(Image { width: img.width, height: img.height, pixels })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -160,6 +216,17 @@ mod tests {
         // NRMSE red: sqrt(2.5) / mean(1, 3).
         assert!((m.nrmse - 2.5f64.sqrt() / 2.0).abs() < 1e-12);
         assert!(metrics(&img, &Image::new(1, 1)).is_err());
+    }
+
+    #[test]
+    fn merge_weights_by_sample_count() {
+        let a = Image { width: 1, height: 1, pixels: vec![rgb(1.0, 2.0, 3.0)] };
+        let b = Image { width: 1, height: 1, pixels: vec![rgb(4.0, 5.0, 6.0)] };
+        let m = merge_weighted(&[(a.clone(), 1.0), (b, 2.0)]).unwrap();
+        assert_eq!(m.pixels[0], rgb(3.0, 4.0, 5.0));
+        assert!(merge_weighted(&[(a.clone(), 1.0), (Image::new(2, 1), 1.0)]).is_err());
+        assert!(merge_weighted(&[(a, 0.0)]).is_err());
+        assert!(merge_weighted(&[]).is_err());
     }
 
     #[test]

@@ -244,6 +244,78 @@ impl Film {
         img
     }
 
+    /// Exact binary form (all accumulators as f64), for checkpoints.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(64 + self.weight.len() * 80);
+        out.extend_from_slice(b"SKLFILM1");
+        let (tag, param) = match self.filter {
+            Filter::Box => (0u8, 0.0f32),
+            Filter::Tent { radius } => (1, radius),
+            Filter::Gaussian { stddev } => (2, stddev),
+        };
+        for v in [self.width as u64, self.height as u64, self.splat_paths, self.rejected] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.push(tag);
+        out.extend_from_slice(&param.to_le_bytes());
+        let rgb = |out: &mut Vec<u8>, a: &[[f64; 3]]| {
+            a.iter().flatten().for_each(|v| out.extend_from_slice(&v.to_le_bytes()))
+        };
+        rgb(&mut out, &self.sum);
+        rgb(&mut out, &self.sum_sq);
+        self.weight.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        rgb(&mut out, &self.splat);
+        out
+    }
+
+    /// Inverse of [`Film::to_bytes`]; refuses truncated or foreign data.
+    pub fn from_bytes(b: &[u8]) -> Result<Film, String> {
+        let mut pos = 0usize;
+        let mut take = |n: usize| -> Result<&[u8], String> {
+            let s = b.get(pos..pos + n).ok_or("film data ends early")?;
+            pos += n;
+            Ok(s)
+        };
+        if take(8)? != b"SKLFILM1" {
+            return Err("not a skelight film".into());
+        }
+        let mut u64s = [0u64; 4];
+        for v in &mut u64s {
+            *v = u64::from_le_bytes(take(8)?.try_into().unwrap());
+        }
+        let [w, h, splat_paths, rejected] = u64s;
+        let tag = take(1)?[0];
+        let param = f32::from_le_bytes(take(4)?.try_into().unwrap());
+        let filter = match tag {
+            0 => Filter::Box,
+            1 => Filter::Tent { radius: param },
+            2 => Filter::Gaussian { stddev: param },
+            t => return Err(format!("unknown filter tag {t}")),
+        };
+        let n = (w as usize).checked_mul(h as usize).filter(|&n| n <= 1 << 28).ok_or("film size out of range")?;
+        if b.len() < pos + n * 80 {
+            return Err("film data ends early".into());
+        }
+        let mut film = Film::new(w as usize, h as usize, filter);
+        film.splat_paths = splat_paths;
+        film.rejected = rejected;
+        let mut f64s = b[pos..pos + n * 80].chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap()));
+        let fill = |a: &mut Vec<[f64; 3]>, it: &mut dyn Iterator<Item = f64>| {
+            for px in a.iter_mut() {
+                for v in px.iter_mut() {
+                    *v = it.next().unwrap_or(0.0);
+                }
+            }
+        };
+        fill(&mut film.sum, &mut f64s);
+        fill(&mut film.sum_sq, &mut f64s);
+        for v in film.weight.iter_mut() {
+            *v = f64s.next().unwrap_or(0.0);
+        }
+        fill(&mut film.splat, &mut f64s);
+        Ok(film)
+    }
+
     /// Pixel-centre film position of pixel (x, y).
     pub fn pixel_center(x: usize, y: usize) -> Vec2 {
         vec2(x as f32 + 0.5, y as f32 + 0.5)
@@ -282,6 +354,21 @@ mod tests {
         assert!((f.eval_1d(0.0) - 1.0).abs() < 1e-6 && f.eval_1d(1.0) == 0.0);
         let g = Filter::Gaussian { stddev: 0.5 };
         assert!(g.eval_1d(2.0).abs() < 1e-6 && g.eval_1d(0.0) > g.eval_1d(0.5));
+    }
+
+    #[test]
+    fn binary_form_round_trips_exactly() {
+        let f = Filter::Gaussian { stddev: 0.5 };
+        let mut film = Film::new(5, 3, f);
+        let mut tile = FilmTile::new(0, 0, 5, 3, f);
+        tile.add(vec2(1.3, 2.2), Rgb::splat(0.1));
+        tile.splat(vec2(4.5, 0.5), Rgb::splat(7.0));
+        film.merge_tile(&tile);
+        film.splat_paths = 9;
+        let back = Film::from_bytes(&film.to_bytes()).unwrap();
+        assert_eq!(back.to_bytes(), film.to_bytes());
+        assert_eq!(back.image(), film.image());
+        assert!(Film::from_bytes(&film.to_bytes()[..40]).is_err());
     }
 
     #[test]

@@ -43,7 +43,7 @@ impl Image {
         }
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
         if ext == "exr" {
-            return load_exr(path).map_err(err);
+            return load_exr(path).map(|(img, _)| img).map_err(err);
         }
         let img = image::ImageReader::open(path)
             .map_err(|e| err(e.to_string()))?
@@ -84,16 +84,34 @@ impl Image {
 
     /// Writes a scan-line float EXR atomically.
     pub fn save_exr(&self, path: &Path) -> Result<(), ImageError> {
+        self.save_exr_with(path, &[])
+    }
+
+    /// Writes a scan-line float EXR atomically, with numeric header attributes
+    /// (`skelight.spp` records how many samples per pixel the image holds).
+    pub fn save_exr_with(&self, path: &Path, attributes: &[(&str, f64)]) -> Result<(), ImageError> {
         use exr::prelude::*;
         let err = |reason: String| ImageError::Write { path: path.to_path_buf(), reason };
         let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
             let c = self.pixels[p.1 * self.width + p.0];
             (c.r, c.g, c.b)
         });
-        let layer =
-            Layer::new((self.width, self.height), LayerAttributes::named("rgb"), Encoding::SMALL_LOSSLESS, channels);
+        let mut attrs = LayerAttributes::named("rgb");
+        for (k, v) in attributes {
+            attrs.other.insert(Text::from(*k), AttributeValue::F64(*v));
+        }
+        let layer = Layer::new((self.width, self.height), attrs, Encoding::SMALL_LOSSLESS, channels);
         let image = exr::image::Image::from_layer(layer);
         write_atomically(path, |tmp| image.write().to_file(tmp).map_err(|e| e.to_string())).map_err(err)
+    }
+
+    /// Loads an EXR with its numeric header attributes.
+    pub fn load_exr_with_attributes(path: &Path) -> Result<(Image, Vec<(String, f64)>), ImageError> {
+        let err = |reason: String| ImageError::Read { path: path.to_path_buf(), reason };
+        if !path.exists() {
+            return Err(err("file not found".into()));
+        }
+        load_exr(path).map_err(err)
     }
 
     /// Writes an 8-bit sRGB PNG after multiplying by `2^exposure`, atomically.
@@ -152,7 +170,7 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), Str
     }
 }
 
-fn load_exr(path: &Path) -> Result<Image, String> {
+fn load_exr(path: &Path) -> Result<(Image, Vec<(String, f64)>), String> {
     use exr::prelude::*;
     let img = read_first_rgba_layer_from_file(
         path,
@@ -163,11 +181,23 @@ fn load_exr(path: &Path) -> Result<Image, String> {
         },
     )
     .map_err(|e| e.to_string())?;
+    let attributes = img
+        .layer_data
+        .attributes
+        .other
+        .iter()
+        .filter_map(|(k, v)| match v {
+            AttributeValue::F64(x) => Some((k.to_string(), *x)),
+            AttributeValue::F32(x) => Some((k.to_string(), *x as f64)),
+            AttributeValue::I32(x) => Some((k.to_string(), *x as f64)),
+            _ => None,
+        })
+        .collect();
     let image: crate::imageio::Image = img.layer_data.channel_data.pixels;
     if image.width == 0 || image.height == 0 {
         return Err("image has no pixels".into());
     }
-    Ok(image)
+    Ok((image, attributes))
 }
 
 #[cfg(test)]
@@ -183,8 +213,11 @@ mod tests {
             *p = rgb(i as f32, 0.5 * i as f32, 100.0);
         }
         let exr = dir.join("a.exr");
-        img.save_exr(&exr).unwrap();
+        img.save_exr_with(&exr, &[("skelight.spp", 64.0)]).unwrap();
         assert_eq!(Image::load(&exr).unwrap(), img);
+        let (back, attrs) = Image::load_exr_with_attributes(&exr).unwrap();
+        assert_eq!(back, img);
+        assert!(attrs.iter().any(|(k, v)| k == "skelight.spp" && *v == 64.0), "{attrs:?}");
         let png = dir.join("a.png");
         img.save_png(&png, 0.0).unwrap();
         let back = Image::load(&png).unwrap();

@@ -8,6 +8,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod camera;
+pub mod checkpoint;
 pub mod color;
 pub mod eval;
 pub mod film;

@@ -94,26 +94,19 @@ pub fn render(
         .map(|(x, y)| (x, y, TILE.min(w - x), TILE.min(h - y)))
         .collect();
     let start = Instant::now();
-    // Aim for passes of about 2^18 samples so that progress and time checks stay frequent.
-    let mut per_pass = (262_144 / (w * h).max(1)).clamp(1, 64) as u32;
+    // Passes of about 2^18 samples, aligned to multiples of `pass` samples per pixel from
+    // sample 0, so that a render resumed from a checkpoint (taken between passes) adds up
+    // its sums in exactly the same order as an uninterrupted one.
+    let pass = (262_144 / (w * h).max(1)).clamp(1, 64) as u32;
     loop {
         let remaining = opts.spp.map(|s| s.saturating_sub(done)).unwrap_or(u32::MAX);
         if remaining == 0 {
             break;
         }
-        let elapsed = start.elapsed();
-        if let Some(budget) = opts.time {
-            if elapsed >= budget {
-                break;
-            }
-            if done > 0 {
-                // Shrink the pass so that it ends near the budget.
-                let per_spp = elapsed.as_secs_f64() / done.max(1) as f64;
-                let left = (budget - elapsed).as_secs_f64();
-                per_pass = per_pass.min(((left / per_spp.max(1e-9)) as u32).max(1));
-            }
+        if opts.time.is_some_and(|budget| start.elapsed() >= budget) {
+            break;
         }
-        let n = per_pass.min(remaining);
+        let n = (pass - done % pass).min(remaining);
         let first = done;
         let results: Vec<FilmTile> = pool.install(|| {
             use rayon::prelude::*;
@@ -150,7 +143,6 @@ pub fn render(
         if !progress(&p, &film) {
             break;
         }
-        per_pass = (per_pass * 2).min(64);
     }
     Ok(RenderResult { film, spp: done, elapsed: start.elapsed() })
 }

@@ -1,0 +1,179 @@
+//! The `skelight` command as a user runs it.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use skelight::eval::block_means;
+use skelight::imageio::Image;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_skelight"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("skelight-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run_ok(args: &[&str]) -> String {
+    let out = bin().args(args).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "skelight {args:?} failed:\n{text}");
+    text
+}
+
+#[test]
+fn default_scene_renders_to_exr_and_png() {
+    let d = tmp("default");
+    let out = d.join("img.exr");
+    let log = run_ok(&["render", "-o", out.to_str().unwrap(), "--spp", "2", "--resolution", "40", "30", "-q"]);
+    assert!(log.contains("done: 2 spp"), "{log}");
+    let (img, attrs) = Image::load_exr_with_attributes(&out).unwrap();
+    assert_eq!((img.width, img.height), (40, 30));
+    assert!(attrs.iter().any(|(k, v)| k == "skelight.spp" && *v == 2.0));
+    assert!(d.join("img.png").exists());
+    assert!(img.mean().max_component() > 0.0);
+}
+
+#[test]
+fn bad_arguments_fail_with_a_message() {
+    for args in [
+        vec!["render", "--spp", "0"],
+        vec!["render", "/nonexistent/scene.xml"],
+        vec!["render", "--integrator", "magic"],
+        vec!["render", "--resolution", "0", "10"],
+        vec!["render", "--time", "-3"],
+        vec!["render", "--max-depth", "-7"],
+    ] {
+        let out = bin().args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("error"), "{args:?} should fail: {err}");
+        assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    }
+}
+
+/// Kill a reference render between checkpoints, resume it: the result is identical, bit for
+/// bit, to an uninterrupted render with the same seed.
+#[test]
+fn killed_reference_render_resumes_to_the_identical_image() {
+    let d = tmp("resume");
+    let (a, b) = (d.join("a.exr"), d.join("b.exr"));
+    let args = |out: &Path| -> Vec<String> {
+        [
+            "reference",
+            "-o",
+            out.to_str().unwrap(),
+            "--resolution",
+            "24",
+            "16",
+            "--spp",
+            "3000",
+            "--seed",
+            "5",
+            "--checkpoint-every",
+            "0.05",
+            "-q",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+    };
+    let mut child = bin().args(args(&a)).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    let ckpt = d.join("a.exr.ckpt");
+    let t = Instant::now();
+    while !ckpt.exists() && t.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    let finished_early = child.try_wait().unwrap().is_some();
+    child.kill().ok();
+    child.wait().unwrap();
+    let partial = skelight::checkpoint::Checkpoint::load(&ckpt).unwrap();
+    assert!(finished_early || partial.spp < 3000, "the kill should land mid-render");
+    let log = run_ok(&args(&a).iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(finished_early || log.contains("resuming"), "{log}");
+    run_ok(&args(&b).iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(Image::load(&a).unwrap(), Image::load(&b).unwrap());
+    // A checkpoint of another render is not silently reused.
+    let other = bin()
+        .args(["reference", "-o", a.to_str().unwrap(), "--resolution", "24", "16", "--spp", "10", "--seed", "6", "-q"])
+        .output()
+        .unwrap();
+    assert!(!other.status.success() && String::from_utf8_lossy(&other.stderr).contains("another render"));
+}
+
+/// Merging k renders of n spp each (different seeds) estimates the same image as one
+/// render of k·n spp: block means agree within the noise of the two estimates.
+#[test]
+fn merged_renders_match_one_longer_render() {
+    let d = tmp("merge");
+    let mut parts = Vec::new();
+    for seed in 1..=4 {
+        let p = d.join(format!("part{seed}.exr"));
+        run_ok(&[
+            "render",
+            "-o",
+            p.to_str().unwrap(),
+            "--resolution",
+            "32",
+            "24",
+            "--spp",
+            "64",
+            "--seed",
+            &seed.to_string(),
+            "-q",
+        ]);
+        parts.push(p);
+    }
+    let merged = d.join("merged.exr");
+    let mut args = vec!["merge".to_string()];
+    args.extend(parts.iter().map(|p| p.to_str().unwrap().to_string()));
+    args.extend(["-o".into(), merged.to_str().unwrap().into()]);
+    run_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let (m, attrs) = Image::load_exr_with_attributes(&merged).unwrap();
+    assert!(attrs.iter().any(|(k, v)| k == "skelight.spp" && *v == 256.0));
+    let single = d.join("single.exr");
+    run_ok(&[
+        "render",
+        "-o",
+        single.to_str().unwrap(),
+        "--resolution",
+        "32",
+        "24",
+        "--spp",
+        "256",
+        "--seed",
+        "99",
+        "-q",
+    ]);
+    let s = Image::load(&single).unwrap();
+    // The parts' spread estimates the noise of one 64-spp render, per block.
+    let part_blocks: Vec<Vec<[f64; 3]>> = parts.iter().map(|p| block_means(&Image::load(p).unwrap(), 8)).collect();
+    let (bm, bs) = (block_means(&m, 8), block_means(&s, 8));
+    let mut z2 = Vec::new();
+    for i in 0..bm.len() {
+        for c in 0..3 {
+            let mean = part_blocks.iter().map(|b| b[i][c]).sum::<f64>() / 4.0;
+            let var64 = part_blocks.iter().map(|b| (b[i][c] - mean).powi(2)).sum::<f64>() / 3.0;
+            // Both the merged and the single image have 256 spp: variance var64/4 each.
+            let var = 2.0 * var64 / 4.0;
+            if var > 0.0 {
+                z2.push((bm[i][c] - bs[i][c]).powi(2) / var);
+            }
+        }
+    }
+    let mean_z2 = z2.iter().sum::<f64>() / z2.len() as f64;
+    // E[z²] = 1 (with a 3-dof variance estimate, E ≈ 3); 36 terms: allow up to 6.
+    assert!(mean_z2 < 6.0, "merged vs single: mean z² = {mean_z2}");
+    // A mismatched part is refused.
+    let odd = d.join("odd.exr");
+    run_ok(&["render", "-o", odd.to_str().unwrap(), "--resolution", "8", "8", "--spp", "1", "-q"]);
+    let out = bin()
+        .args(["merge", parts[0].to_str().unwrap(), odd.to_str().unwrap(), "-o", d.join("x.exr").to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("sizes differ"));
+}
