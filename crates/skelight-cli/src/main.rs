@@ -1,6 +1,7 @@
 //! `skelight`: render scenes, compare images, measure throughput.
 
 mod bench;
+mod compare;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -38,6 +39,8 @@ enum Command {
         #[arg(long, default_value_t = 0.5)]
         max_error: f32,
     },
+    /// Equal-time comparison of estimators against a reference, with a report.
+    Compare(CompareArgs),
     /// Combine independent renders of one scene (weighted by their sample counts).
     Merge {
         parts: Vec<PathBuf>,
@@ -58,6 +61,35 @@ enum Command {
         #[arg(short = 'D', value_parser = parse_define)]
         define: Vec<(String, String)>,
     },
+}
+
+#[derive(clap::Args)]
+struct CompareArgs {
+    /// Scene file. Omit for the embedded default scene.
+    scene: Option<PathBuf>,
+    /// Converged reference image (EXR) of the same scene and resolution.
+    #[arg(long)]
+    reference: PathBuf,
+    /// Estimators, comma-separated; speed-ups are relative to the first.
+    #[arg(long, value_delimiter = ',', default_value = "pt")]
+    integrators: Vec<String>,
+    /// Wall time per estimator (300, 90s, 5m, 2h).
+    #[arg(long, value_parser = parse_duration, default_value = "60")]
+    time: Duration,
+    /// Measure the error at most this often (default: after every pass).
+    #[arg(long, value_parser = parse_duration)]
+    every: Option<Duration>,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    #[command(flatten)]
+    setup: SceneSetup,
+    #[arg(short = 'D', value_parser = parse_define)]
+    define: Vec<(String, String)>,
+    /// Output folder for the report.
+    #[arg(short, long)]
+    output: PathBuf,
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 #[derive(clap::Args)]
@@ -480,6 +512,43 @@ fn reference(args: ReferenceArgs) -> Result<()> {
     Ok(())
 }
 
+fn compare_cmd(a: CompareArgs) -> Result<()> {
+    let reference = Image::load(&a.reference)?;
+    let mut scene = load_scene(a.scene.as_deref(), &a.define)?;
+    a.setup.apply(&mut scene)?;
+    if a.setup.resolution.is_none()
+        && (scene.settings.width, scene.settings.height) != (reference.width, reference.height)
+    {
+        eprintln!("rendering at the reference's resolution, {}×{}", reference.width, reference.height);
+        scene.set_resolution(reference.width, reference.height);
+    }
+    if (scene.settings.width, scene.settings.height) != (reference.width, reference.height) {
+        bail!("--resolution differs from the reference's {}×{}", reference.width, reference.height);
+    }
+    let opts = RenderOptions { spp: None, time: Some(a.time), seed: a.seed, threads: a.setup.threads };
+    let series = compare::run(&scene, &a.integrators, &reference, &opts, a.every.unwrap_or(Duration::ZERO), a.quiet)?;
+    let study = compare::Study {
+        scene_label: a.scene.as_deref().map(|p| p.display().to_string()).unwrap_or_else(|| "default scene".into()),
+        reference_label: a.reference.display().to_string(),
+        time: a.time,
+        every: a.every.unwrap_or(Duration::ZERO),
+        seed: a.seed,
+        threads: a.setup.threads,
+        series,
+    };
+    compare::write_report(&study, &reference, &a.output)?;
+    for s in &study.series {
+        if let Some(p) = s.points.last() {
+            eprintln!(
+                "{}: {} spp in {:.2} s, relMSE {:.4e}, RMSE {:.4e}",
+                s.name, p.spp, p.seconds, p.metrics.relmse, p.metrics.rmse
+            );
+        }
+    }
+    eprintln!("report: {}", a.output.join("report.html").display());
+    Ok(())
+}
+
 /// Merges independent renders of one scene, weighted by their sample counts.
 fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
     let mut loaded = Vec::new();
@@ -510,6 +579,7 @@ fn main() {
         Command::Render(a) => render(a),
         Command::Bench { what } => bench(what),
         Command::Reference(a) => reference(a),
+        Command::Compare(a) => compare_cmd(a),
         Command::Merge { parts, output, equal_weights } => merge(&parts, &output, equal_weights),
         Command::Diff { image, reference, error_image, max_error } => (|| {
             let ia = Image::load(&image)?;

@@ -177,3 +177,77 @@ fn merged_renders_match_one_longer_render() {
         .unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("sizes differ"));
 }
+
+/// A tiny equal-time study writes every part of the report, with consistent numbers.
+#[test]
+fn compare_writes_a_complete_report() {
+    let d = tmp("compare");
+    let reference = d.join("ref.exr");
+    run_ok(&[
+        "reference",
+        "-o",
+        reference.to_str().unwrap(),
+        "--resolution",
+        "24",
+        "16",
+        "--spp",
+        "512",
+        "--seed",
+        "3",
+        "-q",
+    ]);
+    let out = d.join("report");
+    let log = run_ok(&[
+        "compare",
+        "--reference",
+        reference.to_str().unwrap(),
+        "--integrators",
+        "pt,pt",
+        "--time",
+        "0.4",
+        "-o",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(log.contains("report:"), "{log}");
+    for f in [
+        "errors.csv",
+        "errors.json",
+        "error_vs_time.svg",
+        "error_vs_time.png",
+        "pt.exr",
+        "pt#2.exr",
+        "pt_error.png",
+        "side_by_side.png",
+        "time_to_error.csv",
+        "report.html",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let csv = std::fs::read_to_string(out.join("errors.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert!(rows.iter().filter(|r| r.starts_with("pt,")).count() >= 1 && rows.iter().any(|r| r.starts_with("pt#2,")));
+    // Errors fall as samples accumulate (on average over the run).
+    let relmse: Vec<f64> =
+        rows.iter().filter(|r| r.starts_with("pt,")).map(|r| r.split(',').nth(6).unwrap().parse().unwrap()).collect();
+    assert!(relmse.last().unwrap() <= relmse.first().unwrap(), "{relmse:?}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("<svg") && html.contains("data:image/png;base64,") && html.contains("speed-up"));
+    // The reference must match the render's size.
+    let bad = bin()
+        .args([
+            "compare",
+            "--reference",
+            reference.to_str().unwrap(),
+            "--resolution",
+            "8",
+            "8",
+            "--time",
+            "0.1",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+}

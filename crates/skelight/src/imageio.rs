@@ -114,9 +114,8 @@ impl Image {
         load_exr(path).map_err(err)
     }
 
-    /// Writes an 8-bit sRGB PNG after multiplying by `2^exposure`, atomically.
-    pub fn save_png(&self, path: &Path, exposure: f32) -> Result<(), ImageError> {
-        let err = |reason: String| ImageError::Write { path: path.to_path_buf(), reason };
+    /// 8-bit sRGB PNG bytes after multiplying by `2^exposure` (non-finite values as black).
+    pub fn to_png_bytes(&self, exposure: f32) -> Result<Vec<u8>, String> {
         let scale = 2f32.powf(exposure);
         let mut buf = Vec::with_capacity(self.pixels.len() * 3);
         for p in &self.pixels {
@@ -125,18 +124,24 @@ impl Image {
                 buf.push((linear_to_srgb(v) * 255.0 + 0.5) as u8);
             }
         }
-        write_atomically(path, |tmp| {
-            image::save_buffer_with_format(
-                tmp,
-                &buf,
-                self.width as u32,
-                self.height as u32,
-                image::ExtendedColorType::Rgb8,
-                image::ImageFormat::Png,
-            )
-            .map_err(|e| e.to_string())
-        })
-        .map_err(err)
+        let mut out = std::io::Cursor::new(Vec::new());
+        image::write_buffer_with_format(
+            &mut out,
+            &buf,
+            self.width as u32,
+            self.height as u32,
+            image::ExtendedColorType::Rgb8,
+            image::ImageFormat::Png,
+        )
+        .map_err(|e| e.to_string())?;
+        Ok(out.into_inner())
+    }
+
+    /// Writes an 8-bit sRGB PNG after multiplying by `2^exposure`, atomically.
+    pub fn save_png(&self, path: &Path, exposure: f32) -> Result<(), ImageError> {
+        let err = |reason: String| ImageError::Write { path: path.to_path_buf(), reason };
+        let bytes = self.to_png_bytes(exposure).map_err(err)?;
+        write_atomically(path, |tmp| std::fs::write(tmp, &bytes).map_err(|e| e.to_string())).map_err(err)
     }
 
     /// Saves by extension (.exr or .png).
