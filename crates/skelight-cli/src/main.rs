@@ -183,7 +183,7 @@ struct RenderArgs {
     /// Output image (.exr); a tone-mapped PNG is written beside it.
     #[arg(short, long, default_value = "render.exr")]
     output: PathBuf,
-    /// Estimator: one of pt.
+    /// Estimator: pt (path tracing) or lt (light tracing).
     #[arg(short, long, default_value = "pt")]
     integrator: String,
     /// Samples per pixel (default: the scene's sampler, or 16 for the default scene).
@@ -358,6 +358,9 @@ impl Job {
         let label = scene_path
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| "default scene (two rooms, door ajar)".into());
+        if let Some(why) = integrator.limitation(&scene) {
+            eprintln!("warning: {why}; the image will miss that light");
+        }
         let opts = RenderOptions { spp, time, seed, threads: setup.threads };
         Ok(Job { scene, integrator, opts, label })
     }

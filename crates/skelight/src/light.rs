@@ -134,6 +134,25 @@ pub struct AreaEmitter {
     pub distribution: Distribution1D,
 }
 
+/// A sampled ray leaving a light (for light tracing and bidirectional methods).
+#[derive(Clone, Copy, Debug)]
+pub struct EmissionSample {
+    /// Origin on the light (a point far outside the scene for distant lights).
+    pub p: Vec3,
+    /// Geometric normal at the origin (zero for point-like lights).
+    pub n: Vec3,
+    pub d: Vec3,
+    /// Initial throughput: emitted radiance (or intensity) × |cos| / (pdf_pos · pdf_dir).
+    pub beta: Rgb,
+    /// Density of the origin per unit area (1 for delta positions).
+    pub pdf_pos: f32,
+    /// Density of the direction per solid angle (1 for delta directions).
+    pub pdf_dir: f32,
+    /// The origin is a point (point, spot) or infinitely far (directional, environment).
+    pub delta_pos: bool,
+    pub infinite: bool,
+}
+
 #[derive(Debug)]
 pub enum Light {
     Area(AreaEmitter),
@@ -279,6 +298,134 @@ impl Light {
                 let (wi, radiance, pdf) = e.sample(u)?;
                 Some(LightSample { wi, dist: f32::INFINITY, radiance, pdf, delta: false, p: p + wi * 1e30, n: -wi })
             }
+        }
+    }
+
+    /// Samples a ray leaving the light. Distant lights start on a disk of the scene's
+    /// bounding sphere (`center`, `radius`), perpendicular to their direction.
+    pub fn sample_le(&self, u1: Vec2, u2: Vec2, center: Vec3, radius: f32) -> Option<EmissionSample> {
+        let distant = |d: Vec3, radiance: Rgb, pdf_dir: f32| {
+            // Light travels along d; start on a disk behind the scene.
+            let f = Frame::from_normal(d);
+            let disk = crate::sampling::concentric_disk(u1) * radius;
+            let p = center - d * radius + f.s * disk.x + f.t * disk.y;
+            let pdf_pos = 1.0 / (PI * radius * radius);
+            (pdf_dir > 0.0).then(|| EmissionSample {
+                p,
+                n: d,
+                d,
+                beta: radiance / (pdf_pos * pdf_dir),
+                pdf_pos,
+                pdf_dir,
+                delta_pos: false,
+                infinite: true,
+            })
+        };
+        match self {
+            Light::Area(a) => {
+                let (tri, _, rem) = a.distribution.sample_discrete(u1.x);
+                let b = uniform_triangle(vec2(rem, u1.y));
+                let [v0, v1, v2] = a.triangles[tri];
+                let p = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
+                let mut ng = (v1 - v0).cross(v2 - v0).normalize();
+                if let Some(n) = &a.normals {
+                    let ns = n[tri][0] * (1.0 - b.x - b.y) + n[tri][1] * b.x + n[tri][2] * b.y;
+                    if ns.dot(ng) < 0.0 {
+                        ng = -ng;
+                    }
+                }
+                let local = crate::sampling::cosine_hemisphere(u2);
+                let d = Frame::from_normal(ng).to_world(local);
+                let pdf_dir = crate::sampling::cosine_hemisphere_pdf(local.z);
+                let le = self.emitted_towards(tri, b, d);
+                if pdf_dir <= 0.0 || le.is_black() {
+                    return None;
+                }
+                let pdf_pos = 1.0 / a.area;
+                Some(EmissionSample {
+                    p,
+                    n: ng,
+                    d,
+                    beta: le * (local.z / (pdf_pos * pdf_dir)),
+                    pdf_pos,
+                    pdf_dir,
+                    delta_pos: false,
+                    infinite: false,
+                })
+            }
+            Light::Point { position, intensity } => {
+                let d = uniform_sphere(u2);
+                Some(EmissionSample {
+                    p: *position,
+                    n: Vec3::ZERO,
+                    d,
+                    beta: *intensity / UNIFORM_SPHERE_PDF,
+                    pdf_pos: 1.0,
+                    pdf_dir: UNIFORM_SPHERE_PDF,
+                    delta_pos: true,
+                    infinite: false,
+                })
+            }
+            Light::Spot { position, frame, intensity, cos_cutoff, cutoff, beam_width } => {
+                let local = crate::sampling::uniform_cone(u2, *cos_cutoff);
+                let pdf_dir = crate::sampling::uniform_cone_pdf(*cos_cutoff);
+                let f = Self::spot_falloff(local, *cos_cutoff, *cutoff, *beam_width);
+                if f <= 0.0 {
+                    return None;
+                }
+                Some(EmissionSample {
+                    p: *position,
+                    n: Vec3::ZERO,
+                    d: frame.to_world(local),
+                    beta: *intensity * (f / pdf_dir),
+                    pdf_pos: 1.0,
+                    pdf_dir,
+                    delta_pos: true,
+                    infinite: false,
+                })
+            }
+            Light::Directional { direction, irradiance } => distant(*direction, *irradiance, 1.0),
+            Light::Constant { radiance } => {
+                let to_light = uniform_sphere(u2);
+                distant(-to_light, *radiance, UNIFORM_SPHERE_PDF)
+            }
+            Light::Env(e) => {
+                let (to_light, radiance, pdf) = e.sample(u2)?;
+                distant(-to_light, radiance, pdf)
+            }
+        }
+    }
+
+    /// Radiance an area light's triangle `tri` emits at barycentrics `b` towards `d`
+    /// (zero behind its shading normal); intensity × falloff for point and spot lights.
+    fn emitted_towards(&self, tri: usize, b: Vec2, d: Vec3) -> Rgb {
+        match self {
+            Light::Area(a) => {
+                let [v0, v1, v2] = a.triangles[tri];
+                let ns = match &a.normals {
+                    Some(n) => n[tri][0] * (1.0 - b.x - b.y) + n[tri][1] * b.x + n[tri][2] * b.y,
+                    None => (v1 - v0).cross(v2 - v0),
+                };
+                if ns.dot(d) > 0.0 {
+                    a.radiance
+                } else {
+                    Rgb::BLACK
+                }
+            }
+            _ => Rgb::BLACK,
+        }
+    }
+
+    /// What a light vertex from `sample_le` sends towards direction `d` (unit): radiance for
+    /// area lights (`n` its normal side), intensity × falloff for point and spot lights.
+    pub fn emitted_from(&self, e: &EmissionSample, d: Vec3) -> Rgb {
+        match self {
+            Light::Area(a) if e.n.dot(d) > 0.0 => a.radiance,
+            Light::Point { intensity, .. } => *intensity,
+            Light::Spot { frame, intensity, cos_cutoff, cutoff, beam_width, .. } => {
+                *intensity * Self::spot_falloff(frame.to_local(d), *cos_cutoff, *cutoff, *beam_width)
+            }
+            _ => Rgb::BLACK,
         }
     }
 

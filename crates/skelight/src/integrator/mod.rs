@@ -4,6 +4,7 @@
 //! index), and tiles are merged in a fixed order, so a render is a pure function of the
 //! scene, the estimator, the seed and the sample count: thread count does not matter.
 
+pub mod lt;
 pub mod pt;
 
 use std::time::{Duration, Instant};
@@ -21,6 +22,11 @@ pub trait Integrator: Sync {
     /// Light paths traced per camera sample (normalises splats; 0 if none).
     fn splats_per_sample(&self) -> u64 {
         0
+    }
+    /// Why this estimator cannot render all of `scene`, if it cannot (light transport it
+    /// has no strategy for). Such renders are incomplete, not wrong.
+    fn limitation(&self, _scene: &Scene) -> Option<String> {
+        None
     }
 }
 
@@ -151,9 +157,10 @@ pub fn render(
 pub fn by_name(name: &str) -> Option<Box<dyn Integrator>> {
     match name {
         "pt" | "path" => Some(Box::new(pt::PathTracer::default())),
+        "lt" => Some(Box::new(lt::LightTracer)),
         _ => None,
     }
 }
 
 /// Names accepted by [`by_name`].
-pub const INTEGRATORS: &[&str] = &["pt"];
+pub const INTEGRATORS: &[&str] = &["pt", "lt"];

@@ -50,8 +50,12 @@ pub fn compare(fa: &Film, fb: &Film, reference: &Image, ref_mean: [f64; 3], spp:
     let mut mean = [0.0; 3];
     for c in 0..3 {
         let m: f64 = ba.iter().zip(&bb).map(|(x, y)| 0.5 * (x[c] + y[c])).sum::<f64>() / nb;
-        // Variance of the averaged render's mean, from the per-pixel sample variances.
-        let var: f64 = bva.iter().zip(&bvb).map(|(x, y)| (x[c] + y[c]) / 4.0 / per_block).sum::<f64>() / (nb * nb);
+        // Variance of the averaged render's mean, from the per-pixel sample variances; for
+        // splat-only estimators (no per-pixel samples) from the two renders' block differences.
+        let from_pixels: f64 =
+            bva.iter().zip(&bvb).map(|(x, y)| (x[c] + y[c]) / 4.0 / per_block).sum::<f64>() / (nb * nb);
+        let from_blocks: f64 = ba.iter().zip(&bb).map(|(x, y)| (x[c] - y[c]).powi(2) / 4.0).sum::<f64>() / (nb * nb);
+        let var = if from_pixels > 0.0 { from_pixels } else { from_blocks };
         // The reference's own noise, scaled by its sample count.
         let var_ref = var * (2.0 * spp as f64) / ref_spp as f64;
         z[c] = (m - ref_mean[c]).abs() / (var + var_ref).sqrt().max(1e-12 * ref_mean[c].abs().max(1e-6));
