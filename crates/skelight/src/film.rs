@@ -4,7 +4,7 @@
 
 use crate::color::Rgb;
 use crate::imageio::Image;
-use crate::math::{vec2, Vec2};
+use crate::math::Vec2;
 
 /// Pixel reconstruction filter with Mitsuba's definitions.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -315,16 +315,12 @@ impl Film {
         fill(&mut film.splat, &mut f64s);
         Ok(film)
     }
-
-    /// Pixel-centre film position of pixel (x, y).
-    pub fn pixel_center(x: usize, y: usize) -> Vec2 {
-        vec2(x as f32 + 0.5, y as f32 + 0.5)
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::vec2;
 
     #[test]
     fn box_filter_averages_samples_in_their_pixel() {

@@ -47,13 +47,6 @@ impl Rng {
     pub fn next_2d(&mut self) -> Vec2 {
         vec2(self.next_f32(), self.next_f32())
     }
-    /// Full generator state, for checkpoints.
-    pub fn state(&self) -> (u64, u64) {
-        (self.state, self.inc)
-    }
-    pub fn from_state(state: u64, inc: u64) -> Rng {
-        Rng { state, inc }
-    }
 }
 
 /// Cosine-weighted hemisphere around +z (Malley's method on the concentric disk).

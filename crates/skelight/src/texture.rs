@@ -145,10 +145,6 @@ impl Texture {
             Texture::Scale { scale, inner } => inner.mean() * *scale,
         }
     }
-
-    pub fn is_constant(&self) -> bool {
-        matches!(self, Texture::Constant(_))
-    }
 }
 
 #[cfg(test)]

@@ -111,3 +111,35 @@ fn corridor_raw_obj_matches_the_xml_wrapper() {
     }
     std::fs::remove_dir_all(&tmp).ok();
 }
+
+/// Mean and its standard error from two independent renders (block differences), which
+/// works for splat-only estimators too.
+fn pair_mean_se(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
+    let (ba, bb) = (skelight::eval::block_means(a, 8), skelight::eval::block_means(b, 8));
+    let nb = ba.len() as f64;
+    let mut m = [0.0; 3];
+    let mut se = [0.0; 3];
+    for c in 0..3 {
+        m[c] = ba.iter().zip(&bb).map(|(x, y)| 0.5 * (x[c] + y[c])).sum::<f64>() / nb;
+        se[c] = (ba.iter().zip(&bb).map(|(x, y)| (x[c] - y[c]).powi(2) / 4.0).sum::<f64>()).sqrt() / nb;
+    }
+    (m, se)
+}
+
+/// Path tracing and light tracing estimate the same image of the far-from-light corridor.
+#[test]
+fn pt_and_lt_agree_on_the_corridor() {
+    let scene = load_small(&repo_scene("corridor-raw.toml"), 48, 48);
+    let est = |name: &str, spp: u32| {
+        let i = by_name(name).unwrap();
+        assert!(i.limitation(&scene).is_none());
+        let (a, b) = (render_spp(&scene, i.as_ref(), spp, 11).image(), render_spp(&scene, i.as_ref(), spp, 12).image());
+        pair_mean_se(&a, &b)
+    };
+    let ((mp, sp), (ml, sl)) = (est("pt", 256), est("lt", 256));
+    for c in 0..3 {
+        let z = (mp[c] - ml[c]).abs() / (sp[c] * sp[c] + sl[c] * sl[c]).sqrt();
+        println!("channel {c}: pt {:.4} ± {:.4}, lt {:.4} ± {:.4}, z {z:.2}", mp[c], sp[c], ml[c], sl[c]);
+        assert!(z < Z_LIMIT, "channel {c}: pt {} ± {} vs lt {} ± {}", mp[c], sp[c], ml[c], sl[c]);
+    }
+}

@@ -178,10 +178,6 @@ impl Bsdf {
             _ => 0.5,
         }
     }
-    /// Whether the BSDF is exactly Lambertian (used by tests and the default scene).
-    pub fn is_diffuse(&self) -> bool {
-        matches!(self, Bsdf::Diffuse(_))
-    }
 }
 
 /// A change of shading normal computed from a texture before the BSDF is evaluated.
