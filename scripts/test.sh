@@ -27,7 +27,7 @@ cargo fmt --all -- --check
 cargo clippy --all-targets --release -- -D warnings
 cargo test --release --workspace
 if [ -n "$embree" ]; then
-    cargo clippy --all-targets --release --features embree -p skelight -p skelight-cli -- -D warnings
+    cargo clippy --all-targets --release --features embree -p skelight -p skelight-cli -p skelight-shape -- -D warnings
     cargo test --release -p skelight --features embree --lib geometry
 else
     echo "note: libembree-dev not available; Embree backend tests skipped"

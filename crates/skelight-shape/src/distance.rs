@@ -1,0 +1,223 @@
+//! Distance maps of a binary grid: for every voxel of the set, the distance to the nearest
+//! voxel outside it, in L1 (6-connected), chessboard (26-connected) and exact Euclidean
+//! metrics, each in time linear in the number of voxels. Outside the grid counts as outside
+//! the set when `border_is_outside` (the empty space of a scene is closed by its grid).
+
+use crate::grid::Grid;
+
+const INF: u32 = u32::MAX / 4;
+
+/// The axis lines of the grid: (start index, stride, length) for every line along `axis`.
+fn lines(dims: [usize; 3], axis: usize) -> Vec<(usize, usize, usize)> {
+    let stride = [1, dims[0], dims[0] * dims[1]];
+    let (a, b) = match axis {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    let mut out = Vec::with_capacity(dims[a] * dims[b]);
+    for j in 0..dims[b] {
+        for i in 0..dims[a] {
+            out.push((i * stride[a] + j * stride[b], stride[axis], dims[axis]));
+        }
+    }
+    out
+}
+
+fn init(set: &Grid<bool>) -> Vec<u32> {
+    set.data.iter().map(|&inside| if inside { INF } else { 0 }).collect()
+}
+
+/// L1 distance: separable, one forward and one backward pass per axis.
+pub fn l1(set: &Grid<bool>, border_is_outside: bool) -> Grid<u32> {
+    let mut d = init(set);
+    for axis in 0..3 {
+        for (start, stride, n) in lines(set.spec.dims, axis) {
+            let mut prev = if border_is_outside { 0 } else { INF };
+            for k in 0..n {
+                let i = start + k * stride;
+                prev = d[i].min(prev.saturating_add(1));
+                d[i] = prev;
+            }
+            let mut prev = if border_is_outside { 0 } else { INF };
+            for k in (0..n).rev() {
+                let i = start + k * stride;
+                prev = d[i].min(prev.saturating_add(1));
+                d[i] = prev;
+            }
+        }
+    }
+    Grid { spec: set.spec, data: d }
+}
+
+/// Chessboard distance: two raster passes of the 26-neighbour chamfer mask with unit
+/// weights (Rosenfeld & Pfaltz), exact for this metric.
+pub fn chessboard(set: &Grid<bool>, border_is_outside: bool) -> Grid<u32> {
+    let mut d = init(set);
+    let [nx, ny, nz] = set.spec.dims.map(|v| v as i64);
+    let border = if border_is_outside { 0 } else { INF };
+    let at = |d: &Vec<u32>, x: i64, y: i64, z: i64| -> u32 {
+        if x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz {
+            border
+        } else {
+            d[((z * ny + y) * nx + x) as usize]
+        }
+    };
+    // The 13 neighbours that precede a voxel in raster order (z, then y, then x).
+    let causal: Vec<[i64; 3]> = (-1..=1)
+        .flat_map(|dz| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| [dx, dy, dz])))
+        .filter(|&[dx, dy, dz]| dz < 0 || (dz == 0 && (dy < 0 || (dy == 0 && dx < 0))))
+        .collect();
+    for forward in [true, false] {
+        let sign = if forward { 1 } else { -1 };
+        for zi in 0..nz {
+            let z = if forward { zi } else { nz - 1 - zi };
+            for yi in 0..ny {
+                let y = if forward { yi } else { ny - 1 - yi };
+                for xi in 0..nx {
+                    let x = if forward { xi } else { nx - 1 - xi };
+                    let i = ((z * ny + y) * nx + x) as usize;
+                    if d[i] == 0 {
+                        continue;
+                    }
+                    let best = causal
+                        .iter()
+                        .map(|o| at(&d, x + sign * o[0], y + sign * o[1], z + sign * o[2]))
+                        .min()
+                        .unwrap_or(INF);
+                    d[i] = d[i].min(best.saturating_add(1));
+                }
+            }
+        }
+    }
+    Grid { spec: set.spec, data: d }
+}
+
+/// Exact squared Euclidean distance (Felzenszwalb & Huttenlocher's lower envelope of
+/// parabolas along each axis in turn).
+pub fn euclidean_squared(set: &Grid<bool>, border_is_outside: bool) -> Grid<u64> {
+    let dims = set.spec.dims;
+    const BIG: f64 = 1e18;
+    let mut d: Vec<f64> = set.data.iter().map(|&inside| if inside { BIG } else { 0.0 }).collect();
+    for axis in 0..3 {
+        for (start, stride, n) in lines(dims, axis) {
+            // With an outside border, pad the line with outside voxels at −1 and n.
+            let pad = usize::from(border_is_outside);
+            let m = n + 2 * pad;
+            let f: Vec<f64> =
+                (0..m).map(|k| if k < pad || k >= n + pad { 0.0 } else { d[start + (k - pad) * stride] }).collect();
+            let out = lower_envelope(&f);
+            for k in 0..n {
+                d[start + k * stride] = out[k + pad];
+            }
+        }
+    }
+    Grid { spec: set.spec, data: d.into_iter().map(|v| if v >= BIG { u64::MAX } else { v as u64 }).collect() }
+}
+
+/// 1D squared distance transform: out[q] = min_p (q − p)² + f[p].
+fn lower_envelope(f: &[f64]) -> Vec<f64> {
+    let n = f.len();
+    let mut v = vec![0usize; n];
+    let mut z = vec![0f64; n + 1];
+    let mut k = 0usize;
+    z[0] = f64::NEG_INFINITY;
+    z[1] = f64::INFINITY;
+    let inter =
+        |q: usize, p: usize| ((f[q] + (q * q) as f64) - (f[p] + (p * p) as f64)) / (2.0 * q as f64 - 2.0 * p as f64);
+    for q in 1..n {
+        let mut s = inter(q, v[k]);
+        while s <= z[k] {
+            if k == 0 {
+                break;
+            }
+            k -= 1;
+            s = inter(q, v[k]);
+        }
+        if s <= z[k] {
+            // k == 0 and the new parabola dominates everywhere.
+            v[0] = q;
+            z[0] = f64::NEG_INFINITY;
+            z[1] = f64::INFINITY;
+            continue;
+        }
+        k += 1;
+        v[k] = q;
+        z[k] = s;
+        z[k + 1] = f64::INFINITY;
+    }
+    let mut out = vec![0f64; n];
+    k = 0;
+    for (q, o) in out.iter_mut().enumerate() {
+        while z[k + 1] < q as f64 {
+            k += 1;
+        }
+        let dq = q as f64 - v[k] as f64;
+        *o = dq * dq + f[v[k]];
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::GridSpec;
+
+    fn random_set(dims: [usize; 3], seed: u64, density: f64) -> Grid<bool> {
+        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims };
+        let mut s = seed;
+        let mut g = Grid::new(spec, true);
+        for v in g.data.iter_mut() {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            *v = ((s >> 33) as f64 / (1u64 << 31) as f64) > density;
+        }
+        g
+    }
+
+    /// Brute force over every outside voxel (and the virtual border ring when it counts).
+    fn brute(set: &Grid<bool>, border: bool, metric: impl Fn([i64; 3]) -> u64) -> Vec<u64> {
+        let [nx, ny, nz] = set.spec.dims.map(|d| d as i64);
+        let mut outside = Vec::new();
+        for z in -1..=nz {
+            for y in -1..=ny {
+                for x in -1..=nx {
+                    let in_grid = x >= 0 && y >= 0 && z >= 0 && x < nx && y < ny && z < nz;
+                    if (in_grid && !*set.get(x as usize, y as usize, z as usize)) || (!in_grid && border) {
+                        outside.push([x, y, z]);
+                    }
+                }
+            }
+        }
+        let mut out = Vec::new();
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    out.push(outside.iter().map(|q| metric([x - q[0], y - q[1], z - q[2]])).min().unwrap_or(u64::MAX));
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn all_metrics_match_brute_force() {
+        for (i, dims) in [[7, 5, 6], [1, 9, 4], [12, 3, 1]].into_iter().enumerate() {
+            for density in [0.05, 0.3] {
+                for border in [true, false] {
+                    let set = random_set(dims, 31 + i as u64, density);
+                    let l1b = brute(&set, border, |d| d.iter().map(|v| v.unsigned_abs()).sum());
+                    let chb = brute(&set, border, |d| d.iter().map(|v| v.unsigned_abs()).max().unwrap());
+                    let eub = brute(&set, border, |d| d.iter().map(|v| (v * v) as u64).sum());
+                    let cap = |v: u64, inf: u64| if v >= inf { u64::MAX } else { v };
+                    let l1 = l1(&set, border).data.iter().map(|&v| cap(v as u64, INF as u64)).collect::<Vec<_>>();
+                    let ch =
+                        chessboard(&set, border).data.iter().map(|&v| cap(v as u64, INF as u64)).collect::<Vec<_>>();
+                    let eu = euclidean_squared(&set, border).data;
+                    assert_eq!(l1, l1b, "L1 {dims:?} {density} {border}");
+                    assert_eq!(ch, chb, "chessboard {dims:?} {density} {border}");
+                    assert_eq!(eu, eub, "euclidean {dims:?} {density} {border}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,113 @@
+//! Dense 3D voxel grids over an axis-aligned box of the scene.
+
+/// Where a grid sits in the world: origin of voxel (0,0,0)'s lower corner, cubic voxel size
+/// and dimensions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridSpec {
+    pub origin: [f64; 3],
+    pub voxel: f64,
+    pub dims: [usize; 3],
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum GridError {
+    #[error("the bounding box is empty or not finite")]
+    EmptyBounds,
+    #[error("resolution must be at least 1 on each side")]
+    ZeroResolution,
+    #[error("a {0}×{1}×{2} grid needs about {3} MiB, more than the {4} MiB allowed; choose a lower resolution")]
+    TooLarge(usize, usize, usize, u64, u64),
+}
+
+/// Memory cap for one grid of one byte per voxel (the analysis keeps several).
+pub const MAX_GRID_BYTES: u64 = 4 << 30;
+
+impl GridSpec {
+    /// Grid whose longest side has `resolution` voxels, over `min`–`max` grown by `margin`
+    /// (a fraction of the longest side on each end; the seeds use 10 % in all).
+    pub fn from_bounds(min: [f64; 3], max: [f64; 3], resolution: usize, margin: f64) -> Result<GridSpec, GridError> {
+        if resolution == 0 {
+            return Err(GridError::ZeroResolution);
+        }
+        let ext: Vec<f64> = (0..3).map(|i| max[i] - min[i]).collect();
+        if ext.iter().any(|e| !(e.is_finite() && *e >= 0.0)) || ext.iter().all(|e| *e == 0.0) {
+            return Err(GridError::EmptyBounds);
+        }
+        let longest = ext.iter().cloned().fold(0.0, f64::max);
+        let grow = longest * margin;
+        let voxel = (longest + 2.0 * grow) / resolution as f64;
+        let dims = [0, 1, 2].map(|i| (((ext[i] + 2.0 * grow) / voxel).ceil() as usize).max(1));
+        let origin = [0, 1, 2].map(|i| min[i] - grow - (dims[i] as f64 * voxel - ext[i] - 2.0 * grow) * 0.5);
+        let spec = GridSpec { origin, voxel, dims };
+        spec.check_memory(1)?;
+        Ok(spec)
+    }
+
+    /// Refuses grids whose `bytes_per_voxel` storage would exceed [`MAX_GRID_BYTES`], before
+    /// anything is allocated.
+    pub fn check_memory(&self, bytes_per_voxel: u64) -> Result<(), GridError> {
+        let [x, y, z] = self.dims;
+        let n = (x as u64).saturating_mul(y as u64).saturating_mul(z as u64).saturating_mul(bytes_per_voxel);
+        if n > MAX_GRID_BYTES {
+            return Err(GridError::TooLarge(x, y, z, n >> 20, MAX_GRID_BYTES >> 20));
+        }
+        Ok(())
+    }
+
+    pub fn len(&self) -> usize {
+        self.dims[0] * self.dims[1] * self.dims[2]
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    #[inline]
+    pub fn index(&self, x: usize, y: usize, z: usize) -> usize {
+        (z * self.dims[1] + y) * self.dims[0] + x
+    }
+    /// World position of a voxel's centre.
+    pub fn center(&self, x: usize, y: usize, z: usize) -> [f64; 3] {
+        let c = [x, y, z];
+        [0, 1, 2].map(|i| self.origin[i] + (c[i] as f64 + 0.5) * self.voxel)
+    }
+}
+
+/// Values on a grid, x fastest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid<T> {
+    pub spec: GridSpec,
+    pub data: Vec<T>,
+}
+
+impl<T: Clone> Grid<T> {
+    pub fn new(spec: GridSpec, value: T) -> Grid<T> {
+        Grid { spec, data: vec![value; spec.len()] }
+    }
+    #[inline]
+    pub fn get(&self, x: usize, y: usize, z: usize) -> &T {
+        &self.data[self.spec.index(x, y, z)]
+    }
+    #[inline]
+    pub fn set(&mut self, x: usize, y: usize, z: usize, v: T) {
+        let i = self.spec.index(x, y, z);
+        self.data[i] = v;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bounds_become_a_centred_grid_with_the_requested_longest_side() {
+        let s = GridSpec::from_bounds([0.0, 0.0, 0.0], [10.0, 5.0, 2.0], 128, 0.05).unwrap();
+        assert_eq!(s.dims[0], 128);
+        assert!(s.dims[1] >= 64 && s.dims[2] >= 26);
+        // The box lies inside the grid with the margin on both ends.
+        for i in 0..3 {
+            assert!(s.origin[i] <= 0.0 && s.origin[i] + s.dims[i] as f64 * s.voxel >= [10.0, 5.0, 2.0][i]);
+        }
+        assert_eq!(GridSpec::from_bounds([0.0; 3], [0.0; 3], 8, 0.1), Err(GridError::EmptyBounds));
+        assert_eq!(GridSpec::from_bounds([0.0; 3], [1.0; 3], 0, 0.1), Err(GridError::ZeroResolution));
+        assert!(matches!(GridSpec::from_bounds([0.0; 3], [1.0; 3], 100_000, 0.1), Err(GridError::TooLarge(..))));
+    }
+}
