@@ -153,6 +153,30 @@ pub struct EmissionSample {
     pub infinite: bool,
 }
 
+/// A point drawn uniformly on an area emitter.
+struct AreaPoint {
+    p: Vec3,
+    /// Geometric normal.
+    ng: Vec3,
+    /// Shading normal (decides the emitting side).
+    ns: Vec3,
+}
+
+impl AreaEmitter {
+    fn sample_point(&self, u: Vec2) -> AreaPoint {
+        let (tri, _, rem) = self.distribution.sample_discrete(u.x);
+        let b = uniform_triangle(vec2(rem, u.y));
+        let [v0, v1, v2] = self.triangles[tri];
+        let p = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
+        let ng = (v1 - v0).cross(v2 - v0).normalize();
+        let ns = match &self.normals {
+            Some(n) => (n[tri][0] * (1.0 - b.x - b.y) + n[tri][1] * b.x + n[tri][2] * b.y).normalize(),
+            None => ng,
+        };
+        AreaPoint { p, ng, ns }
+    }
+}
+
 #[derive(Debug)]
 pub enum Light {
     Area(AreaEmitter),
@@ -216,11 +240,7 @@ impl Light {
     pub fn sample_li(&self, p: Vec3, u: Vec2) -> Option<LightSample> {
         match self {
             Light::Area(a) => {
-                let (tri, _, rem) = a.distribution.sample_discrete(u.x);
-                let b = uniform_triangle(vec2(rem, u.y));
-                let [v0, v1, v2] = a.triangles[tri];
-                let q = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
-                let ng = (v1 - v0).cross(v2 - v0).normalize();
+                let AreaPoint { p: q, ng, ns } = a.sample_point(u);
                 let d = q - p;
                 let dist2 = d.length_squared();
                 if !(dist2 > 0.0) {
@@ -232,10 +252,6 @@ impl Light {
                 if cos_l <= 0.0 {
                     return None;
                 }
-                let ns = match &a.normals {
-                    Some(n) => (n[tri][0] * (1.0 - b.x - b.y) + n[tri][1] * b.x + n[tri][2] * b.y).normalize(),
-                    None => ng,
-                };
                 let radiance = if ns.dot(wi) < 0.0 { a.radiance } else { Rgb::BLACK };
                 let pdf = dist2 / (cos_l * a.area);
                 Some(LightSample { wi, dist, radiance, pdf, delta: false, p: q, n: ng })
@@ -323,21 +339,12 @@ impl Light {
         };
         match self {
             Light::Area(a) => {
-                let (tri, _, rem) = a.distribution.sample_discrete(u1.x);
-                let b = uniform_triangle(vec2(rem, u1.y));
-                let [v0, v1, v2] = a.triangles[tri];
-                let p = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
-                let mut ng = (v1 - v0).cross(v2 - v0).normalize();
-                if let Some(n) = &a.normals {
-                    let ns = n[tri][0] * (1.0 - b.x - b.y) + n[tri][1] * b.x + n[tri][2] * b.y;
-                    if ns.dot(ng) < 0.0 {
-                        ng = -ng;
-                    }
-                }
+                let AreaPoint { p, ng, ns } = a.sample_point(u1);
+                let ng = if ns.dot(ng) < 0.0 { -ng } else { ng };
                 let local = crate::sampling::cosine_hemisphere(u2);
                 let d = Frame::from_normal(ng).to_world(local);
                 let pdf_dir = crate::sampling::cosine_hemisphere_pdf(local.z);
-                let le = self.emitted_towards(tri, b, d);
+                let le = if ns.dot(d) > 0.0 { a.radiance } else { Rgb::BLACK };
                 if pdf_dir <= 0.0 || le.is_black() {
                     return None;
                 }
@@ -393,26 +400,6 @@ impl Light {
                 let (to_light, radiance, pdf) = e.sample(u2)?;
                 distant(-to_light, radiance, pdf)
             }
-        }
-    }
-
-    /// Radiance an area light's triangle `tri` emits at barycentrics `b` towards `d`
-    /// (zero behind its shading normal); intensity × falloff for point and spot lights.
-    fn emitted_towards(&self, tri: usize, b: Vec2, d: Vec3) -> Rgb {
-        match self {
-            Light::Area(a) => {
-                let [v0, v1, v2] = a.triangles[tri];
-                let ns = match &a.normals {
-                    Some(n) => n[tri][0] * (1.0 - b.x - b.y) + n[tri][1] * b.x + n[tri][2] * b.y,
-                    None => (v1 - v0).cross(v2 - v0),
-                };
-                if ns.dot(d) > 0.0 {
-                    a.radiance
-                } else {
-                    Rgb::BLACK
-                }
-            }
-            _ => Rgb::BLACK,
         }
     }
 

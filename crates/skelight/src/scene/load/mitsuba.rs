@@ -97,6 +97,13 @@ impl Loader {
         self.desc.warnings.push(msg);
     }
 
+    /// A warning about element `n`, prefixed with its file and line.
+    fn warn_at(&mut self, n: Node, msg: impl std::fmt::Display) {
+        let pos = n.document().text_pos_at(n.range().start);
+        let text = format!("{}:{}: {msg}", self.file.display(), pos.row);
+        self.warn(text);
+    }
+
     fn err(&self, doc_node: Node, msg: impl Into<String>) -> LoadError {
         let pos = doc_node.document().text_pos_at(doc_node.range().start);
         LoadError::at(&self.file, pos.row as usize, msg.into())
@@ -158,8 +165,7 @@ impl Loader {
             }
             "emitter" => self.emitter(n),
             other => {
-                let pos = n.document().text_pos_at(n.range().start);
-                self.warn(format!("{}:{}: <{other}> is not supported; ignored", self.file.display(), pos.row));
+                self.warn_at(n, format!("<{other}> is not supported; ignored"));
                 Ok(())
             }
         }
@@ -668,12 +674,7 @@ impl Loader {
             }
             "null" => Ok(Parsed { bsdf: Bsdf::Black, perturbation: None, alpha: Some(Texture::constant(0.0)) }),
             other => {
-                let pos = n.document().text_pos_at(n.range().start);
-                self.warn(format!(
-                    "{}:{}: BSDF type '{other}' is not supported; rendered as magenta diffuse",
-                    self.file.display(),
-                    pos.row
-                ));
+                self.warn_at(n, format!("BSDF type '{other}' is not supported; rendered as magenta diffuse"));
                 plain(Material::fallback(other).bsdf)
             }
         }
@@ -749,12 +750,7 @@ impl Loader {
                     .transform(&Transform::from_matrix(m).ok_or_else(|| self.err(n, "degenerate cylinder"))?)
             }
             other => {
-                let pos = n.document().text_pos_at(n.range().start);
-                self.warn(format!(
-                    "{}:{}: shape type '{other}' is not supported; skipped",
-                    self.file.display(),
-                    pos.row
-                ));
+                self.warn_at(n, format!("shape type '{other}' is not supported; skipped"));
                 return Ok(());
             }
         };
@@ -872,12 +868,7 @@ impl Loader {
             }
             "area" => return Err(self.err(n, "an area emitter must be inside a <shape>")),
             other => {
-                let pos = n.document().text_pos_at(n.range().start);
-                self.warn(format!(
-                    "{}:{}: emitter type '{other}' is not supported; ignored",
-                    self.file.display(),
-                    pos.row
-                ));
+                self.warn_at(n, format!("emitter type '{other}' is not supported; ignored"));
                 return Ok(());
             }
         };
@@ -888,12 +879,7 @@ impl Loader {
     fn sensor(&mut self, n: Node) -> R<()> {
         let ty = self.attr(n, "type")?.unwrap_or_default();
         if ty != "perspective" && ty != "thinlens" {
-            let pos = n.document().text_pos_at(n.range().start);
-            self.warn(format!(
-                "{}:{}: sensor '{ty}' is not supported; using a perspective camera",
-                self.file.display(),
-                pos.row
-            ));
+            self.warn_at(n, format!("sensor '{ty}' is not supported; using a perspective camera"));
         }
         let to_world = self.transform(n, "to_world")?;
         let mut settings = RenderSettings {
