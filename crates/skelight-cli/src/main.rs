@@ -163,7 +163,7 @@ struct SceneSetup {
 impl SceneSetup {
     fn apply(&self, scene: &mut Scene) -> Result<()> {
         if let Some(r) = &self.resolution {
-            skelight::scene::load::mitsuba::check_resolution(r[0] as i64, r[1] as i64).map_err(anyhow::Error::msg)?;
+            skelight::scene::check_resolution(r[0] as i64, r[1] as i64).map_err(anyhow::Error::msg)?;
             scene.set_resolution(r[0], r[1]);
         }
         if let Some(d) = self.max_depth {

@@ -186,27 +186,26 @@ impl Film {
         let r = self.filter.radius();
         let (lx, hx) = ((pos.x - r - 0.5).ceil() as i64, (pos.x + r - 0.5).floor() as i64);
         let (ly, hy) = ((pos.y - r - 0.5).ceil() as i64, (pos.y + r - 0.5).floor() as i64);
-        // Normalise the filter footprint so each splat deposits exactly its value.
-        let mut taps = Vec::with_capacity(16);
-        let mut total = 0.0f32;
-        for py in ly..=hy {
-            for px in lx..=hx {
-                let w = self.filter.eval_1d(px as f32 + 0.5 - pos.x) * self.filter.eval_1d(py as f32 + 0.5 - pos.y);
-                if w > 0.0 {
-                    total += w;
-                    taps.push((px, py, w));
-                }
-            }
+        // Normalise the footprint so each splat deposits exactly its value; the filter is
+        // separable, so the total is the product of the two 1D sums.
+        let wx = |px: i64| self.filter.eval_1d(px as f32 + 0.5 - pos.x);
+        let wy = |py: i64| self.filter.eval_1d(py as f32 + 0.5 - pos.y);
+        let total = (lx..=hx).map(wx).sum::<f32>() * (ly..=hy).map(wy).sum::<f32>();
+        if !(total > 0.0) {
+            return;
         }
-        for (px, py, w) in taps {
-            if px < 0 || py < 0 || px >= self.width as i64 || py >= self.height as i64 {
-                continue;
+        for py in ly.max(0)..=hy.min(self.height as i64 - 1) {
+            for px in lx.max(0)..=hx.min(self.width as i64 - 1) {
+                let w = wx(px) * wy(py);
+                if w <= 0.0 {
+                    continue;
+                }
+                let i = py as usize * self.width + px as usize;
+                let s = (w / total) as f64;
+                self.splat[i][0] += s * l.r as f64;
+                self.splat[i][1] += s * l.g as f64;
+                self.splat[i][2] += s * l.b as f64;
             }
-            let i = py as usize * self.width + px as usize;
-            let s = (w / total) as f64;
-            self.splat[i][0] += s * l.r as f64;
-            self.splat[i][1] += s * l.g as f64;
-            self.splat[i][2] += s * l.b as f64;
         }
     }
 

@@ -5,7 +5,6 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::*;
-use skelight::film::Film;
 use skelight::imageio::Image;
 use skelight::integrator::by_name;
 use skelight::scene::load::load;
@@ -19,19 +18,6 @@ fn load_small(path: &Path, w: usize, h: usize) -> Scene {
     let mut s = load(path, &[]).unwrap_or_else(|e| panic!("{e}"));
     s.set_resolution(w, h);
     s
-}
-
-/// Per-channel mean and its standard error (pixels independent; per-pixel variances).
-fn mean_se(film: &Film) -> ([f64; 3], [f64; 3]) {
-    let (img, var) = (film.image(), film.variance_image());
-    let n = img.pixels.len() as f64;
-    let mut m = [0.0; 3];
-    let mut se = [0.0; 3];
-    for c in 0..3 {
-        m[c] = img.pixels.iter().map(|p| p.to_array()[c] as f64).sum::<f64>() / n;
-        se[c] = (var.pixels.iter().map(|p| p.to_array()[c] as f64).sum::<f64>()).sqrt() / n;
-    }
-    (m, se)
 }
 
 #[test]
@@ -76,7 +62,7 @@ fn veach_ajar_matches_the_tungsten_mean() {
     let dir = shared_dir().join("scenes/veach-ajar");
     let scene = load_small(&dir.join("scene.xml"), 160, 90);
     let film = render_spp(&scene, by_name("pt").unwrap().as_ref(), 384, 17);
-    let (m, se) = mean_se(&film);
+    let (m, se) = film_mean_se(&film);
     let reference = Image::load(&dir.join("TungstenRender.exr")).unwrap().mean();
     for (c, r) in reference.to_array().iter().enumerate() {
         let d = (m[c] - *r as f64).abs();
@@ -104,26 +90,12 @@ fn corridor_raw_obj_matches_the_xml_wrapper() {
     let pt = by_name("pt").unwrap();
     let a = render_spp(&load_small(&tmp.join("scene.xml"), 64, 64), pt.as_ref(), 256, 1);
     let b = render_spp(&load_small(&repo_scene("corridor-raw.toml"), 64, 64), pt.as_ref(), 256, 2);
-    let ((ma, sa), (mb, sb)) = (mean_se(&a), mean_se(&b));
+    let ((ma, sa), (mb, sb)) = (film_mean_se(&a), film_mean_se(&b));
     for c in 0..3 {
         let z = (ma[c] - mb[c]).abs() / (sa[c] * sa[c] + sb[c] * sb[c]).sqrt();
         assert!(z < Z_LIMIT, "channel {c}: xml {} ± {} vs raw {} ± {}", ma[c], sa[c], mb[c], sb[c]);
     }
     std::fs::remove_dir_all(&tmp).ok();
-}
-
-/// Mean and its standard error from two independent renders (block differences), which
-/// works for splat-only estimators too.
-fn pair_mean_se(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
-    let (ba, bb) = (skelight::eval::block_means(a, 8), skelight::eval::block_means(b, 8));
-    let nb = ba.len() as f64;
-    let mut m = [0.0; 3];
-    let mut se = [0.0; 3];
-    for c in 0..3 {
-        m[c] = ba.iter().zip(&bb).map(|(x, y)| 0.5 * (x[c] + y[c])).sum::<f64>() / nb;
-        se[c] = (ba.iter().zip(&bb).map(|(x, y)| (x[c] - y[c]).powi(2) / 4.0).sum::<f64>()).sqrt() / nb;
-    }
-    (m, se)
 }
 
 /// Path tracing and light tracing estimate the same image of the far-from-light corridor.

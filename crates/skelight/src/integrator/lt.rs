@@ -6,7 +6,7 @@
 use super::Integrator;
 use crate::film::FilmTile;
 use crate::geometry::{offset_origin, Ray};
-use crate::material::{Bsdf, BsdfCtx, BsdfModel, TransportMode};
+use crate::material::{BsdfCtx, BsdfModel, TransportMode};
 use crate::math::Vec3;
 use crate::sampling::Rng;
 use crate::scene::{Scene, SurfaceInteraction};
@@ -26,24 +26,13 @@ pub fn shading_normal_correction(si: &SurfaceInteraction, wi: Vec3, wo: Vec3) ->
     }
 }
 
-/// Whether a BSDF has a delta lobe (which no connection can reach).
-fn has_delta_lobe(b: &Bsdf) -> bool {
-    match b {
-        Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Plastic(_) | Bsdf::Coating(_) => {
-            true
-        }
-        Bsdf::TwoSided(f, back) => has_delta_lobe(f) || has_delta_lobe(back),
-        _ => false,
-    }
-}
-
 impl Integrator for LightTracer {
     fn limitation(&self, scene: &Scene) -> Option<String> {
         if !scene.infinite_lights.is_empty() {
             return Some("light tracing cannot show an environment seen directly".into());
         }
         if scene.camera.aperture_radius <= 0.0 {
-            if let Some(m) = scene.materials.iter().find(|m| has_delta_lobe(&m.bsdf)) {
+            if let Some(m) = scene.materials.iter().find(|m| m.bsdf.has_delta_lobe()) {
                 return Some(format!(
                     "light tracing cannot show what a pinhole camera sees in the specular material '{}'",
                     m.name

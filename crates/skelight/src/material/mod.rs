@@ -168,6 +168,20 @@ impl BsdfModel for Bsdf {
 }
 
 impl Bsdf {
+    /// Whether any lobe is a delta (mirror, smooth glass, smooth coatings): no connection
+    /// between two vertices can reach such a lobe, only sampling it can.
+    pub fn has_delta_lobe(&self) -> bool {
+        match self {
+            Bsdf::Conductor(_)
+            | Bsdf::Dielectric(_)
+            | Bsdf::ThinDielectric(_)
+            | Bsdf::Plastic(_)
+            | Bsdf::Coating(_) => true,
+            Bsdf::TwoSided(f, b) => f.has_delta_lobe() || b.has_delta_lobe(),
+            _ => false,
+        }
+    }
+
     /// Rough mean albedo, for choosing between layered lobes.
     pub fn mean_albedo(&self) -> f32 {
         match self {

@@ -74,6 +74,17 @@ impl Default for RenderSettings {
     }
 }
 
+/// Refuses resolutions that are zero, negative, or too large to hold in memory.
+pub fn check_resolution(w: i64, h: i64) -> Result<(), String> {
+    if w <= 0 || h <= 0 {
+        return Err(format!("resolution {w}×{h} must be positive"));
+    }
+    if w > 1 << 16 || h > 1 << 16 || w * h > 1 << 28 {
+        return Err(format!("resolution {w}×{h} is too large (at most 65536 on a side and 2^28 pixels)"));
+    }
+    Ok(())
+}
+
 /// What a loader produces: everything but the acceleration structure.
 #[derive(Debug, Default)]
 pub struct SceneDescription {

@@ -26,6 +26,34 @@ pub fn render_spp(scene: &Scene, integrator: &dyn Integrator, spp: u32, seed: u6
     render(scene, integrator, &opts, None, |_, _| true).expect("render").film
 }
 
+/// Per-channel mean of a film's image and its standard error, from the per-pixel sample
+/// variances (pixels are independent with a box filter).
+pub fn film_mean_se(film: &Film) -> ([f64; 3], [f64; 3]) {
+    let (img, var) = (film.image(), film.variance_image());
+    let n = img.pixels.len() as f64;
+    let mut m = [0.0; 3];
+    let mut se = [0.0; 3];
+    for c in 0..3 {
+        m[c] = img.pixels.iter().map(|p| p.to_array()[c] as f64).sum::<f64>() / n;
+        se[c] = var.pixels.iter().map(|p| p.to_array()[c] as f64).sum::<f64>().sqrt() / n;
+    }
+    (m, se)
+}
+
+/// Per-channel mean of two independent renders and its standard error from their 8×8
+/// block differences — usable for splat-only estimators, which record no pixel variance.
+pub fn pair_mean_se(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
+    let (ba, bb) = (block_means(a, 8), block_means(b, 8));
+    let nb = ba.len() as f64;
+    let mut m = [0.0; 3];
+    let mut se = [0.0; 3];
+    for c in 0..3 {
+        m[c] = ba.iter().zip(&bb).map(|(x, y)| 0.5 * (x[c] + y[c])).sum::<f64>() / nb;
+        se[c] = ba.iter().zip(&bb).map(|(x, y)| (x[c] - y[c]).powi(2) / 4.0).sum::<f64>().sqrt() / nb;
+    }
+    (m, se)
+}
+
 /// Outcome of comparing two independent renders with a reference.
 #[derive(Debug)]
 pub struct Comparison {

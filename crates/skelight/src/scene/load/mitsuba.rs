@@ -892,7 +892,7 @@ impl Loader {
         if let Some(f) = film {
             let w = self.int(f, "width", 768)?;
             let h = self.int(f, "height", 576)?;
-            check_resolution(w, h).map_err(|m| self.err(f, m))?;
+            crate::scene::check_resolution(w, h).map_err(|m| self.err(f, m))?;
             settings.width = w as usize;
             settings.height = h as usize;
             if let Some(rf) = f.children().find(|c| c.is_element() && c.tag_name().name() == "rfilter") {
@@ -983,17 +983,6 @@ impl Loader {
         s.rr_depth = rr.min(u32::MAX as i64) as u32;
         Ok(())
     }
-}
-
-/// Refuses resolutions that are zero, negative, or too large to hold in memory.
-pub fn check_resolution(w: i64, h: i64) -> Result<(), String> {
-    if w <= 0 || h <= 0 {
-        return Err(format!("resolution {w}×{h} must be positive"));
-    }
-    if w > 1 << 16 || h > 1 << 16 || w * h > 1 << 28 {
-        return Err(format!("resolution {w}×{h} is too large (at most 65536 on a side and 2^28 pixels)"));
-    }
-    Ok(())
 }
 
 fn merge_groups(groups: Vec<TriangleData>) -> TriangleData {

@@ -200,7 +200,7 @@ pub fn load_native(path: &Path) -> Result<SceneDescription, LoadError> {
     if let Some(f) = doc.film {
         settings.width = f.width.unwrap_or(settings.width);
         settings.height = f.height.unwrap_or(settings.height);
-        super::mitsuba::check_resolution(settings.width as i64, settings.height as i64).map_err(|m| ctx.err(m))?;
+        crate::scene::check_resolution(settings.width as i64, settings.height as i64).map_err(|m| ctx.err(m))?;
         settings.spp = f.spp.unwrap_or(settings.spp);
         if settings.spp == 0 {
             return Err(ctx.err("film.spp must be at least 1"));

@@ -33,6 +33,9 @@ impl Cursor<'_> {
     fn u64(&mut self) -> Result<u64, String> {
         Ok(u64::from_le_bytes(self.take(8)?.try_into().unwrap()))
     }
+    fn vec3(&mut self, double: bool) -> Result<crate::math::Vec3, String> {
+        Ok(vec3(self.real(double)?, self.real(double)?, self.real(double)?))
+    }
     fn real(&mut self, double: bool) -> Result<f32, String> {
         Ok(if double {
             f64::from_le_bytes(self.take(8)?.try_into().unwrap()) as f32
@@ -106,19 +109,11 @@ pub fn load_serialized(path: &Path, index: usize) -> Result<TriangleData, LoadEr
     }
     let mut d = TriangleData::default();
     for _ in 0..nv {
-        d.positions.push(vec3(
-            c.real(double).map_err(&err)?,
-            c.real(double).map_err(&err)?,
-            c.real(double).map_err(&err)?,
-        ));
+        d.positions.push(c.vec3(double).map_err(&err)?);
     }
     if flags & HAS_NORMALS != 0 {
         for _ in 0..nv {
-            d.normals.push(vec3(
-                c.real(double).map_err(&err)?,
-                c.real(double).map_err(&err)?,
-                c.real(double).map_err(&err)?,
-            ));
+            d.normals.push(c.vec3(double).map_err(&err)?);
         }
     }
     if flags & HAS_TEXCOORDS != 0 {
