@@ -106,7 +106,7 @@ pub fn block_means(img: &Image, block: usize) -> Vec<[f64; 3]> {
 /// T = mean_b (avg_b − ref_b)² / mean_b ((r1_b − r2_b)²/4) over block means and channels.
 /// For an unbiased estimator T ≈ 1 at any sample count; bias inflates it.
 pub fn block_t_statistic(r1: &Image, r2: &Image, reference: &Image, block: usize) -> f64 {
-    weighted_t(r1, r2, reference, block, |_, _| 1.0)
+    weighted_t(r1, r2, reference, None, block, |_, _| 1.0)
 }
 
 /// [`block_t_statistic`] on relative errors: each block and channel is weighted by
@@ -115,15 +115,37 @@ pub fn block_t_statistic(r1: &Image, r2: &Image, reference: &Image, block: usize
 /// edges) no longer dominate both sums and leave the statistic with a handful of terms.
 /// (Weights from the renders' own variance would favour blocks that missed a rare, bright
 /// path and bias the numerator when the noise is heavy-tailed, as with caustics.)
-pub fn relative_block_t_statistic(r1: &Image, r2: &Image, reference: &Image, block: usize) -> f64 {
+///
+/// `reference_variance`, the per-pixel variance of the reference itself, adds the
+/// reference's own noise to the denominator: an estimator far less noisy than the one that
+/// made the reference (light tracing on a caustic a path tracer rendered) would otherwise
+/// measure the reference's noise as its bias.
+pub fn relative_block_t_statistic(
+    r1: &Image,
+    r2: &Image,
+    reference: &Image,
+    reference_variance: Option<&Image>,
+    block: usize,
+) -> f64 {
     let r = block_means(reference, block);
     let nb = r.len().max(1) as f64;
     let eps2: [f64; 3] = [0, 1, 2].map(|c| (0.01 * r.iter().map(|x| x[c].abs()).sum::<f64>() / nb).powi(2) + 1e-30);
-    weighted_t(r1, r2, reference, block, |reference, c| 1.0 / (reference * reference + eps2[c]))
+    let block_var = reference_variance.map(|v| {
+        // Variance of a block mean: the sum of its pixels' variances over block⁴.
+        block_means(v, block).into_iter().map(|m| m.map(|x| x / (block * block) as f64)).collect::<Vec<_>>()
+    });
+    weighted_t(r1, r2, reference, block_var.as_deref(), block, |reference, c| 1.0 / (reference * reference + eps2[c]))
 }
 
 /// T with a weight per block and channel, given the reference block mean and the channel.
-fn weighted_t(r1: &Image, r2: &Image, reference: &Image, block: usize, weight: impl Fn(f64, usize) -> f64) -> f64 {
+fn weighted_t(
+    r1: &Image,
+    r2: &Image,
+    reference: &Image,
+    reference_block_var: Option<&[[f64; 3]]>,
+    block: usize,
+    weight: impl Fn(f64, usize) -> f64,
+) -> f64 {
     let (a, b, r) = (block_means(r1, block), block_means(r2, block), block_means(reference, block));
     let (mut num, mut den) = (0.0f64, 0.0f64);
     for i in 0..r.len() {
@@ -131,6 +153,9 @@ fn weighted_t(r1: &Image, r2: &Image, reference: &Image, block: usize, weight: i
             let w = weight(r[i][c], c);
             num += w * (0.5 * (a[i][c] + b[i][c]) - r[i][c]).powi(2);
             den += w * (a[i][c] - b[i][c]).powi(2) / 4.0;
+            if let Some(v) = reference_block_var {
+                den += w * v[i][c];
+            }
         }
     }
     if den > 0.0 {
@@ -241,10 +266,29 @@ mod tests {
         let (a, b) = (noisy(&mut rng, 0.0), noisy(&mut rng, 0.0));
         let t = block_t_statistic(&a, &b, &reference, 8);
         assert!(t < 3.0, "{t}");
-        let tw = relative_block_t_statistic(&a, &b, &reference, 8);
+        let tw = relative_block_t_statistic(&a, &b, &reference, None, 8);
         assert!(tw < 3.0, "{tw}");
         let (a, b) = (noisy(&mut rng, 0.2), noisy(&mut rng, 0.2));
         assert!(block_t_statistic(&a, &b, &reference, 8) > 20.0);
-        assert!(relative_block_t_statistic(&a, &b, &reference, 8) > 20.0);
+        assert!(relative_block_t_statistic(&a, &b, &reference, None, 8) > 20.0);
+    }
+
+    #[test]
+    fn t_statistic_allows_for_a_noisy_reference() {
+        // A reference 10× noisier (per pixel) than two nearly exact renders of the truth.
+        let mut rng = crate::sampling::Rng::new(4, 5, 6);
+        let mut image = |sigma: f32| Image {
+            width: 32,
+            height: 32,
+            pixels: (0..1024).map(|_| Rgb::splat(1.0 + sigma * (rng.next_f32() - 0.5) * 12f32.sqrt())).collect(),
+        };
+        let (a, b, reference) = (image(0.01), image(0.01), image(0.1));
+        assert!(relative_block_t_statistic(&a, &b, &reference, None, 8) > 20.0);
+        let variance = Image { width: 32, height: 32, pixels: vec![Rgb::splat(0.01); 1024] };
+        let t = relative_block_t_statistic(&a, &b, &reference, Some(&variance), 8);
+        assert!(t < 3.0 && t > 0.3, "{t}");
+        // It does not hide a bias larger than the reference's noise.
+        let biased = |img: &Image| Image { pixels: img.pixels.iter().map(|p| *p * 1.1).collect(), ..img.clone() };
+        assert!(relative_block_t_statistic(&biased(&a), &biased(&b), &reference, Some(&variance), 8) > 20.0);
     }
 }

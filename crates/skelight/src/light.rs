@@ -403,11 +403,11 @@ impl Light {
         }
     }
 
-    /// What a light vertex from `sample_le` sends towards direction `d` (unit): radiance for
-    /// area lights (`n` its normal side), intensity × falloff for point and spot lights.
-    pub fn emitted_from(&self, e: &EmissionSample, d: Vec3) -> Rgb {
+    /// What a point of this light sends towards direction `d` (unit): radiance for area
+    /// lights (`n` the emitting side's normal), intensity × falloff for point and spot lights.
+    pub fn emitted_towards(&self, n: Vec3, d: Vec3) -> Rgb {
         match self {
-            Light::Area(a) if e.n.dot(d) > 0.0 => a.radiance,
+            Light::Area(a) if n.dot(d) > 0.0 => a.radiance,
             Light::Point { intensity, .. } => *intensity,
             Light::Spot { frame, intensity, cos_cutoff, cutoff, beam_width, .. } => {
                 *intensity * Self::spot_falloff(frame.to_local(d), *cos_cutoff, *cutoff, *beam_width)
@@ -432,6 +432,39 @@ impl Light {
             }
             _ => 0.0,
         }
+    }
+
+    /// Solid-angle density with which `sample_le` sends light from a vertex with normal `n`
+    /// (area lights) in direction `d`; zero for distant lights (see `pdf_le_position`).
+    pub fn pdf_le_direction(&self, n: Vec3, d: Vec3) -> f32 {
+        match self {
+            Light::Area(_) => crate::sampling::cosine_hemisphere_pdf(n.dot(d).max(0.0)),
+            Light::Point { .. } => UNIFORM_SPHERE_PDF,
+            Light::Spot { frame, cos_cutoff, .. } => {
+                if frame.to_local(d).z > *cos_cutoff {
+                    crate::sampling::uniform_cone_pdf(*cos_cutoff)
+                } else {
+                    0.0
+                }
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// Density of the origin `sample_le` (and `sample_li`) picks: per unit area on area
+    /// lights, 1 for point-like lights, and for distant lights the solid-angle density of the
+    /// direction the light arrives from (`travel` is the direction light travels).
+    pub fn pdf_le_origin(&self, travel: Vec3) -> f32 {
+        match self {
+            Light::Area(a) => 1.0 / a.area,
+            Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. } => 1.0,
+            Light::Constant { .. } | Light::Env(_) => self.pdf_infinite(-travel),
+        }
+    }
+
+    /// Whether a ray can hit this light (it has area or surrounds the scene).
+    pub fn can_be_hit(&self) -> bool {
+        matches!(self, Light::Area(_) | Light::Constant { .. } | Light::Env(_))
     }
 
     /// Radiance from an infinite light along a ray leaving the scene in direction `d`.

@@ -68,7 +68,10 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
     let integrator = by_name(integrator_name).expect("integrator");
     let mut failures = Vec::new();
     let mut tested = 0;
-    for (name, ref_mean, ref_spp) in entries {
+    // SKELIGHT_CONFORMANCE=c08,c11 restricts a run to scenes whose names start so.
+    let only = std::env::var("SKELIGHT_CONFORMANCE").ok();
+    let selected = |name: &str| only.as_deref().is_none_or(|o| o.split(',').any(|p| name.starts_with(p)));
+    for (name, ref_mean, ref_spp) in entries.into_iter().filter(|e| selected(&e.0)) {
         let scene_path = dir.join("scenes").join(format!("{name}.xml"));
         let scene = load(&scene_path, &[]).unwrap_or_else(|e| panic!("{name}: {e}"));
         if let Some(why) = integrator.limitation(&scene) {
@@ -77,11 +80,32 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
         }
         tested += 1;
         let reference = Image::load(&dir.join("refs").join(format!("{name}.exr"))).expect("reference");
-        let a = render_spp(&scene, integrator.as_ref(), SPP, 0x1234_5678);
-        let b = render_spp(&scene, integrator.as_ref(), SPP, 0x9E37_79B9_7F4A);
-        let c = compare(&a, &b, &reference, ref_mean, SPP, ref_spp);
+        let noise = reference_noise(&scene, 16, ref_spp);
+        let judge = |spp: u32, seeds: (u64, u64)| {
+            let a = render_spp(&scene, integrator.as_ref(), spp, seeds.0);
+            let b = render_spp(&scene, integrator.as_ref(), spp, seeds.1);
+            let c = compare(&a, &b, &reference, &noise, ref_mean);
+            let ok = c.t < T_LIMIT && c.z.iter().all(|z| *z < Z_LIMIT);
+            (c, ok)
+        };
         let defect = KNOWN_REFERENCE_DIFFERENCES.iter().find(|(n, _)| *n == name);
-        let ok = c.t < T_LIMIT && c.z.iter().all(|z| *z < Z_LIMIT);
+        let (mut c, mut ok) = judge(SPP, (0x1234_5678, 0x9E37_79B9_7F4A));
+        if !ok && defect.is_none() {
+            // Rare bright paths (a caustic seen in a mirror, which only one strategy finds)
+            // make the noise heavy-tailed: at few samples both renders usually miss them and
+            // the block differences underestimate the variance. A second look with 4× the
+            // samples and fresh seeds tells this apart from a bias, whose T grows with the
+            // sample count.
+            println!(
+                "{integrator_name} {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  at {SPP} spp: looking again at {} spp",
+                c.t,
+                c.z[0],
+                c.z[1],
+                c.z[2],
+                4 * SPP
+            );
+            (c, ok) = judge(4 * SPP, (0x51_7CC1_B727, 0x2545_F491_4F6C));
+        }
         println!(
             "{integrator_name} {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (ref {:.4} {:.4} {:.4}) {}",
             c.t, c.z[0], c.z[1], c.z[2], c.mean[0], c.mean[1], c.mean[2], ref_mean[0], ref_mean[1], ref_mean[2],
@@ -96,7 +120,7 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
         }
     }
     assert!(failures.is_empty(), "{integrator_name} disagrees with Mitsuba 3 on:\n{}", failures.join("\n"));
-    assert!(tested >= min_tested, "{integrator_name}: only {tested} scenes could be tested");
+    assert!(only.is_some() || tested >= min_tested, "{integrator_name}: only {tested} scenes could be tested");
 }
 
 #[test]
@@ -107,4 +131,14 @@ fn pt_matches_mitsuba_on_every_conformance_scene() {
 #[test]
 fn lt_matches_mitsuba_where_light_tracing_applies() {
     run_conformance("lt", 10);
+}
+
+#[test]
+fn bpt_matches_mitsuba_on_every_conformance_scene() {
+    run_conformance("bpt", 18);
+}
+
+#[test]
+fn ibpt_matches_mitsuba_on_every_conformance_scene() {
+    run_conformance("ibpt", 18);
 }

@@ -4,8 +4,14 @@
 //! index), and tiles are merged in a fixed order, so a render is a pure function of the
 //! scene, the estimator, the seed and the sample count: thread count does not matter.
 
+pub mod bpt;
+pub mod ibpt;
 pub mod lt;
+pub mod mis;
 pub mod pt;
+pub mod strategies;
+pub mod subpath;
+pub mod vertex;
 
 use std::time::{Duration, Instant};
 
@@ -17,8 +23,18 @@ use crate::scene::Scene;
 pub trait Integrator: Sync {
     fn name(&self) -> &'static str;
     /// Takes one camera sample in pixel (`x`, `y`) and records it in `tile` (and any
-    /// light-path splats anywhere on the film).
-    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile);
+    /// light-path splats anywhere on the film). `iteration` holds what
+    /// [`Integrator::prepare_iteration`] made for this sample index.
+    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile, iteration: &Iteration);
+    /// Whether the estimator shares work between the pixels of an iteration.
+    fn prepares_iterations(&self) -> bool {
+        false
+    }
+    /// Work shared by all pixels for sample index `index` (bpt's light sub-paths), made
+    /// before any of them is sampled. Must depend only on the scene, `seed` and `index`.
+    fn prepare_iteration(&self, _scene: &Scene, _seed: u64, _index: u64) -> Iteration {
+        Iteration::default()
+    }
     /// Light paths traced per camera sample (normalises splats; 0 if none).
     fn splats_per_sample(&self) -> u64 {
         0
@@ -28,6 +44,13 @@ pub trait Integrator: Sync {
     fn limitation(&self, _scene: &Scene) -> Option<String> {
         None
     }
+}
+
+/// What all pixels of one iteration (one sample each) share.
+#[derive(Default)]
+pub struct Iteration {
+    /// One light sub-path per pixel (empty for estimators that need none).
+    pub light_paths: subpath::LightPaths,
 }
 
 /// When to stop and how to run.
@@ -103,7 +126,9 @@ pub fn render(
     // Passes of about 2^18 samples, aligned to multiples of `pass` samples per pixel from
     // sample 0, so that a render resumed from a checkpoint (taken between passes) adds up
     // its sums in exactly the same order as an uninterrupted one.
-    let pass = (262_144 / (w * h).max(1)).clamp(1, 64) as u32;
+    // Estimators that prepare iterations keep a pass's worth of them in memory at once.
+    let pass_samples = if integrator.prepares_iterations() { 65_536 } else { 262_144 };
+    let pass = (pass_samples / (w * h).max(1)).clamp(1, 64) as u32;
     loop {
         let remaining = opts.spp.map(|s| s.saturating_sub(done)).unwrap_or(u32::MAX);
         if remaining == 0 {
@@ -116,6 +141,8 @@ pub fn render(
         let first = done;
         let results: Vec<FilmTile> = pool.install(|| {
             use rayon::prelude::*;
+            let iterations: Vec<Iteration> =
+                (first..first + n).map(|s| integrator.prepare_iteration(scene, opts.seed, s as u64)).collect();
             tiles
                 .par_iter()
                 .map(|&(x0, y0, tw, th)| {
@@ -125,7 +152,8 @@ pub fn render(
                             let pixel = (y * w + x) as u64;
                             for s in first..first + n {
                                 let mut rng = Rng::new(opts.seed, pixel, s as u64);
-                                integrator.sample(scene, x, y, &mut rng, &mut tile);
+                                let it = &iterations[(s - first) as usize];
+                                integrator.sample(scene, x, y, &mut rng, &mut tile, it);
                             }
                         }
                     }
@@ -157,10 +185,12 @@ pub fn render(
 pub fn by_name(name: &str) -> Option<Box<dyn Integrator>> {
     match name {
         "pt" | "path" => Some(Box::new(pt::PathTracer::default())),
-        "lt" => Some(Box::new(lt::LightTracer)),
+        "lt" => Some(Box::new(lt::LightTracer::default())),
+        "bpt" => Some(Box::new(bpt::Bpt::default())),
+        "ibpt" => Some(Box::new(ibpt::InstantBpt)),
         _ => None,
     }
 }
 
 /// Names accepted by [`by_name`].
-pub const INTEGRATORS: &[&str] = &["pt", "lt"];
+pub const INTEGRATORS: &[&str] = &["pt", "lt", "bpt", "ibpt"];

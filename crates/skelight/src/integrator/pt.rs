@@ -2,7 +2,7 @@
 //! sampling against BSDF sampling (power heuristic) and Russian roulette. Path lengths
 //! follow Mitsuba: `max_depth` counts segments, so 2 means direct lighting only.
 
-use super::Integrator;
+use super::{Integrator, Iteration};
 use crate::color::Rgb;
 use crate::film::FilmTile;
 use crate::geometry::Ray;
@@ -117,7 +117,7 @@ impl Integrator for PathTracer {
     fn name(&self) -> &'static str {
         "pt"
     }
-    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile) {
+    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile, _: &Iteration) {
         let pos = vec2(x as f32, y as f32) + rng.next_2d();
         let ray = scene.camera.generate_ray(pos, rng.next_2d());
         let l = self.li(scene, ray, rng);

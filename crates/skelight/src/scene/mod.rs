@@ -283,6 +283,16 @@ impl Scene {
     pub fn bounds(&self) -> Aabb {
         self.bounds
     }
+    /// Centre and radius of the sphere distant lights shine through: their emitted rays start
+    /// on a disk of this radius (slightly larger than the scene, so it never cuts geometry).
+    pub fn emission_sphere(&self) -> (Vec3, f32) {
+        let b = self.bounds;
+        if b.is_empty() {
+            (Vec3::ZERO, 1.0)
+        } else {
+            (b.center(), b.bounding_radius().max(1e-3) * 1.01)
+        }
+    }
     /// Changes the image size, keeping the camera's field of view.
     pub fn set_resolution(&mut self, width: usize, height: usize) {
         self.camera = self.camera.with_resolution(width, height);

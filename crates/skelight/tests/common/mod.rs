@@ -64,32 +64,43 @@ pub struct Comparison {
     pub mean: [f64; 3],
 }
 
-/// Compares films `fa`, `fb` (independent seeds, `spp` each) with `reference` whose mean
-/// is `ref_mean` at `ref_spp` samples per pixel.
-pub fn compare(fa: &Film, fb: &Film, reference: &Image, ref_mean: [f64; 3], spp: u32, ref_spp: u32) -> Comparison {
+/// Compares films `fa`, `fb` (independent seeds, `spp` each) with `reference`, whose mean is
+/// `ref_mean` and whose per-pixel variance is `reference_variance` (see [`reference_noise`]).
+pub fn compare(fa: &Film, fb: &Film, reference: &Image, reference_variance: &Image, ref_mean: [f64; 3]) -> Comparison {
     let (a, b) = (fa.image(), fb.image());
     let (va, vb) = (fa.variance_image(), fb.variance_image());
-    let t = relative_block_t_statistic(&a, &b, reference, 8);
+    let t = relative_block_t_statistic(&a, &b, reference, Some(reference_variance), 8);
     let (ba, bb) = (block_means(&a, 8), block_means(&b, 8));
     let (bva, bvb) = (block_means(&va, 8), block_means(&vb, 8));
     let nb = ba.len() as f64;
     let per_block = 64.0;
+    let npix = reference_variance.pixels.len() as f64;
     let mut z = [0.0; 3];
     let mut mean = [0.0; 3];
     for c in 0..3 {
         let m: f64 = ba.iter().zip(&bb).map(|(x, y)| 0.5 * (x[c] + y[c])).sum::<f64>() / nb;
-        // Variance of the averaged render's mean, from the per-pixel sample variances; for
-        // splat-only estimators (no per-pixel samples) from the two renders' block differences.
+        // Variance of the averaged render's mean, from the per-pixel sample variances and
+        // from the two renders' block differences. Per-pixel variances miss the noise of
+        // splats (light paths land anywhere), so the larger of the two is used.
         let from_pixels: f64 =
             bva.iter().zip(&bvb).map(|(x, y)| (x[c] + y[c]) / 4.0 / per_block).sum::<f64>() / (nb * nb);
         let from_blocks: f64 = ba.iter().zip(&bb).map(|(x, y)| (x[c] - y[c]).powi(2) / 4.0).sum::<f64>() / (nb * nb);
-        let var = if from_pixels > 0.0 { from_pixels } else { from_blocks };
-        // The reference's own noise, scaled by its sample count.
-        let var_ref = var * (2.0 * spp as f64) / ref_spp as f64;
+        let var = from_pixels.max(from_blocks);
+        let var_ref = reference_variance.pixels.iter().map(|p| p.to_array()[c] as f64).sum::<f64>() / (npix * npix);
         z[c] = (m - ref_mean[c]).abs() / (var + var_ref).sqrt().max(1e-12 * ref_mean[c].abs().max(1e-6));
         mean[c] = m;
     }
     Comparison { t, z, mean }
+}
+
+/// Per-pixel variance of a reference made by a path tracer with `ref_spp` samples per
+/// pixel, estimated from skelight's own path tracer (the estimator Mitsuba used) at
+/// `spp` samples and scaled to the reference's sample count.
+pub fn reference_noise(scene: &Scene, spp: u32, ref_spp: u32) -> Image {
+    let pt = skelight::integrator::by_name("pt").expect("pt");
+    let var = render_spp(scene, pt.as_ref(), spp, 0x5EED_0F_4E5E).variance_image();
+    let scale = spp as f32 / ref_spp as f32;
+    Image { pixels: var.pixels.iter().map(|p| *p * scale).collect(), ..var }
 }
 
 /// T limit: the README's validation found 0.7–1.9 for Mitsuba against itself and 22 for a

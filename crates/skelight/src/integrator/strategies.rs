@@ -1,0 +1,172 @@
+//! The (s, t) sampling strategies of bidirectional path tracing, each returning its
+//! MIS-weighted contribution. `bpt` uses them all, `lt` those with t ≤ 1; skeleton-guided
+//! estimators reuse them with light vertices they resample.
+
+use super::mis::{self, Heuristic, PathWeight, StrategySet, SubPath};
+use super::vertex::{LensHit, Vertex, VertexKind};
+use crate::color::Rgb;
+use crate::geometry::{offset_origin, Ray};
+use crate::material::TransportMode;
+use crate::math::{Vec2, Vec3};
+use crate::sampling::Rng;
+use crate::scene::Scene;
+
+/// Exact MIS over a set of strategies, from whole stored sub-paths (`bpt`, `lt`).
+#[derive(Clone, Copy)]
+pub struct Weighting<'a> {
+    pub heuristic: Heuristic,
+    pub strategies: StrategySet<'a>,
+}
+
+impl PathWeight for Weighting<'_> {
+    fn weight(&self, scene: &Scene, light: SubPath, camera: SubPath) -> f32 {
+        mis::weight(scene, light, camera, self.heuristic, self.strategies)
+    }
+}
+
+/// Shadow ray between two vertices (either may be a point light or the lens).
+fn visible(scene: &Scene, a: &Vertex, b: &Vertex) -> bool {
+    let from = |v: &Vertex, to: Vec3| {
+        if v.kind == VertexKind::Surface {
+            v.si.spawn_ray_to(to).o
+        } else if v.n().length_squared() > 0.0 {
+            offset_origin(v.p(), v.n(), to - v.p())
+        } else {
+            v.p()
+        }
+    };
+    let o = from(a, b.p());
+    let q = from(b, o);
+    !scene.occluded(&Ray { o, d: q - o, tmax: 1.0 - 1e-4 })
+}
+
+/// s = 0: the camera sub-path's last vertex `camera[t − 1]` is on an emitter, or the path
+/// escaped to the infinite lights.
+pub fn camera_hits_light(scene: &Scene, camera: &[Vertex], t: usize, w: &impl PathWeight) -> Rgb {
+    let z = &camera[t - 1];
+    let prefix = SubPath::new(&camera[..t - 1], None);
+    match z.kind {
+        VertexKind::Surface => {
+            let le = scene.emitted(&z.si);
+            if le.is_black() {
+                return Rgb::BLACK;
+            }
+            let li = scene.mesh_light[z.si.mesh as usize].expect("emissive mesh has a light");
+            let lv = z.as_light(li);
+            z.beta * le * w.weight(scene, SubPath::EMPTY, SubPath { last: Some(&lv), ..prefix })
+        }
+        VertexKind::Escaped => {
+            let mut sum = Rgb::BLACK;
+            for &li in &scene.infinite_lights {
+                let le = scene.lights[li as usize].eval_infinite(-z.n());
+                if le.is_black() {
+                    continue;
+                }
+                let lv = z.as_infinite_light(li);
+                sum += z.beta * le * w.weight(scene, SubPath::EMPTY, SubPath { last: Some(&lv), ..prefix });
+            }
+            sum
+        }
+        _ => Rgb::BLACK,
+    }
+}
+
+/// s = 1: next-event estimation from `camera[t − 1]` to a light point sampled there.
+pub fn connect_to_light(scene: &Scene, camera: &[Vertex], t: usize, rng: &mut Rng, w: &impl PathWeight) -> Rgb {
+    let z = &camera[t - 1];
+    if z.kind != VertexKind::Surface || !z.can_connect(scene) || scene.lights.is_empty() {
+        return Rgb::BLACK;
+    }
+    let (li, pmf, _) = scene.light_distribution.sample_discrete(rng.next_f32());
+    let light = &scene.lights[li];
+    let Some(ls) = light.sample_li(z.p(), rng.next_2d()) else { return Rgb::BLACK };
+    if ls.radiance.is_black() || !(ls.pdf > 0.0) {
+        return Rgb::BLACK;
+    }
+    let infinite = light.is_infinite();
+    let n = if infinite {
+        -ls.wi
+    } else if light.is_delta() {
+        Vec3::ZERO
+    } else if ls.n.dot(ls.wi) > 0.0 {
+        -ls.n
+    } else {
+        ls.n
+    };
+    let mut lv = Vertex::light(li as u32, infinite, ls.p, n, Rgb::WHITE, 0.0);
+    lv.pdf_fwd = lv.pdf_light_origin(scene);
+    let f = z.f(scene, &camera[t - 2], &lv, TransportMode::Radiance);
+    if f.is_black() {
+        return Rgb::BLACK;
+    }
+    let shadow = if infinite { z.si.spawn_ray(ls.wi) } else { z.si.spawn_ray_to(ls.p) };
+    if scene.occluded(&shadow) {
+        return Rgb::BLACK;
+    }
+    let weight = w.weight(scene, SubPath::new(&[], Some(&lv)), SubPath::new(&camera[..t], None));
+    z.beta * f * ls.radiance * (weight / (pmf * ls.pdf))
+}
+
+/// t = 1: connects light vertex `light[s − 1]` to a sampled lens point. Returns the film
+/// position and the contribution to splat.
+pub fn connect_to_camera(
+    scene: &Scene,
+    light: &[Vertex],
+    s: usize,
+    rng: &mut Rng,
+    w: &impl PathWeight,
+) -> Option<(Vec2, Rgb)> {
+    let y = &light[s - 1];
+    if !y.can_connect(scene) || y.is_infinite() || (s == 1 && !y.hittable(scene)) {
+        return None;
+    }
+    let cam = &scene.camera;
+    let cs = cam.sample_wi(y.p(), rng.next_2d())?;
+    if !(cs.pdf > 0.0) {
+        return None;
+    }
+    let lens = Vertex::camera(cs.lens_point, cam.forward, Rgb::WHITE, cam.pdf_we(cam.forward).0);
+    let throughput = if s == 1 {
+        y.beta * y.emission(scene, cs.wi) * y.n().dot(cs.wi).abs()
+    } else {
+        y.beta * y.f(scene, &light[s - 2], &lens, TransportMode::Importance)
+    };
+    if throughput.is_black() || !visible(scene, y, &lens) {
+        return None;
+    }
+    let pixels = (scene.settings.width * scene.settings.height) as f32;
+    let weight = w.weight(scene, SubPath::new(&light[..s], None), SubPath::new(&[], Some(&lens)));
+    Some((cs.raster, throughput * (cs.importance * pixels / cs.pdf * weight)))
+}
+
+/// t = 0: a light sub-path that passed through the aperture.
+pub fn light_hits_lens(scene: &Scene, light: &[Vertex], hit: &LensHit, w: &impl PathWeight) -> Rgb {
+    let stored = &light[..hit.light_vertices as usize];
+    hit.vertex.beta * w.weight(scene, SubPath::new(stored, Some(&hit.vertex)), SubPath::EMPTY)
+}
+
+/// s, t ≥ 2: joins light vertex `light[s − 1]` and camera vertex `camera[t − 1]`.
+pub fn connect_vertices(
+    scene: &Scene,
+    light: &[Vertex],
+    s: usize,
+    camera: &[Vertex],
+    t: usize,
+    w: &impl PathWeight,
+) -> Rgb {
+    let (y, z) = (&light[s - 1], &camera[t - 1]);
+    if !y.can_connect(scene) || !z.can_connect(scene) || z.kind != VertexKind::Surface {
+        return Rgb::BLACK;
+    }
+    let d2 = (y.p() - z.p()).length_squared();
+    if !(d2 > 0.0) {
+        return Rgb::BLACK;
+    }
+    let fy = y.f(scene, &light[s - 2], z, TransportMode::Importance);
+    let fz = z.f(scene, &camera[t - 2], y, TransportMode::Radiance);
+    let c = y.beta * fy * fz * z.beta / d2;
+    if c.is_black() || !visible(scene, z, y) {
+        return Rgb::BLACK;
+    }
+    c * w.weight(scene, SubPath::new(&light[..s], None), SubPath::new(&camera[..t], None))
+}
