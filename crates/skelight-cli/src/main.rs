@@ -183,7 +183,8 @@ struct RenderArgs {
     /// Output image (.exr); a tone-mapped PNG is written beside it.
     #[arg(short, long, default_value = "render.exr")]
     output: PathBuf,
-    /// Estimator: pt (path tracing) or lt (light tracing).
+    /// Estimator: pt (path tracing), lt (light tracing), bpt (bidirectional path tracing)
+    /// or ibpt (instant BPT: path- and light-tracing walks joined by MIS).
     #[arg(short, long, default_value = "pt")]
     integrator: String,
     /// Samples per pixel (default: the scene's sampler, or 16 for the default scene).

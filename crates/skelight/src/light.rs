@@ -435,17 +435,13 @@ impl Light {
     }
 
     /// Solid-angle density with which `sample_le` sends light from a vertex with normal `n`
-    /// (area lights) in direction `d`; zero for distant lights (see `pdf_le_position`).
+    /// (area lights) in direction `d`; zero for distant lights (see `pdf_le_origin`).
     pub fn pdf_le_direction(&self, n: Vec3, d: Vec3) -> f32 {
         match self {
             Light::Area(_) => crate::sampling::cosine_hemisphere_pdf(n.dot(d).max(0.0)),
             Light::Point { .. } => UNIFORM_SPHERE_PDF,
-            Light::Spot { frame, cos_cutoff, .. } => {
-                if frame.to_local(d).z > *cos_cutoff {
-                    crate::sampling::uniform_cone_pdf(*cos_cutoff)
-                } else {
-                    0.0
-                }
+            Light::Spot { frame, cos_cutoff, .. } if frame.to_local(d).z > *cos_cutoff => {
+                crate::sampling::uniform_cone_pdf(*cos_cutoff)
             }
             _ => 0.0,
         }

@@ -104,7 +104,7 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
                 c.z[2],
                 4 * SPP
             );
-            (c, ok) = judge(4 * SPP, (0x51_7CC1_B727, 0x2545_F491_4F6C));
+            (c, ok) = judge(4 * SPP, (0x0051_7CC1_B727, 0x2545_F491_4F6C));
         }
         println!(
             "{integrator_name} {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (ref {:.4} {:.4} {:.4}) {}",

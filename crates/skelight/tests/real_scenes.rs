@@ -98,20 +98,48 @@ fn corridor_raw_obj_matches_the_xml_wrapper() {
     std::fs::remove_dir_all(&tmp).ok();
 }
 
-/// Path tracing and light tracing estimate the same image of the far-from-light corridor.
-#[test]
-fn pt_and_lt_agree_on_the_corridor() {
-    let scene = load_small(&repo_scene("corridor-raw.toml"), 48, 48);
-    let est = |name: &str, spp: u32| {
-        let i = by_name(name).unwrap();
-        assert!(i.limitation(&scene).is_none());
-        let (a, b) = (render_spp(&scene, i.as_ref(), spp, 11).image(), render_spp(&scene, i.as_ref(), spp, 12).image());
-        pair_mean_se(&a, &b)
-    };
-    let ((mp, sp), (ml, sl)) = (est("pt", 256), est("lt", 256));
-    for c in 0..3 {
-        let z = (mp[c] - ml[c]).abs() / (sp[c] * sp[c] + sl[c] * sl[c]).sqrt();
-        println!("channel {c}: pt {:.4} ± {:.4}, lt {:.4} ± {:.4}, z {z:.2}", mp[c], sp[c], ml[c], sl[c]);
-        assert!(z < Z_LIMIT, "channel {c}: pt {} ± {} vs lt {} ± {}", mp[c], sp[c], ml[c], sl[c]);
+/// Every estimator renders `scene` twice (independent seeds); all pairs must agree in the
+/// image mean (z-test) and block by block (8×8 block T between estimators ≈ 1).
+fn estimators_agree(scene: &Scene, runs: &[(&str, u32)]) {
+    let renders: Vec<(&str, Image, Image)> = runs
+        .iter()
+        .filter_map(|&(name, spp)| {
+            let i = by_name(name).unwrap();
+            if let Some(why) = i.limitation(scene) {
+                println!("{name} skipped: {why}");
+                return None;
+            }
+            let (a, b) =
+                (render_spp(scene, i.as_ref(), spp, 11).image(), render_spp(scene, i.as_ref(), spp, 12).image());
+            Some((name, a, b))
+        })
+        .collect();
+    let (first, a0, b0) = &renders[0];
+    let (m0, s0) = pair_mean_se(a0, b0);
+    for (name, a, b) in &renders[1..] {
+        let (m, se) = pair_mean_se(a, b);
+        let t = pair_block_t(a0, b0, a, b);
+        for c in 0..3 {
+            let z = (m0[c] - m[c]).abs() / (s0[c] * s0[c] + se[c] * se[c]).sqrt();
+            println!("channel {c}: {first} {:.4} ± {:.4}, {name} {:.4} ± {:.4}, z {z:.2}", m0[c], s0[c], m[c], se[c]);
+            assert!(z < Z_LIMIT, "channel {c}: {first} {} ± {} vs {name} {} ± {}", m0[c], s0[c], m[c], se[c]);
+        }
+        println!("{first} vs {name}: block T {t:.2}");
+        assert!(t < T_LIMIT, "{first} vs {name}: block T = {t:.2}");
     }
+}
+
+/// Path tracing, light tracing, BPT and instant BPT estimate the same image of the
+/// far-from-light corridor.
+#[test]
+fn estimators_agree_on_the_corridor() {
+    let scene = load_small(&repo_scene("corridor-raw.toml"), 48, 48);
+    estimators_agree(&scene, &[("pt", 256), ("lt", 256), ("bpt", 64), ("ibpt", 128)]);
+}
+
+/// … and of veach-door, lit through the gap of a door left ajar.
+#[test]
+fn estimators_agree_on_veach_door() {
+    let scene = load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 64, 40);
+    estimators_agree(&scene, &[("pt", 256), ("lt", 256), ("bpt", 64), ("ibpt", 128)]);
 }

@@ -141,7 +141,7 @@ pub fn random_walk(
         if beta.is_black() || !beta.is_finite() {
             break;
         }
-        if sink.count() - 1 >= rr_depth {
+        if sink.count() > rr_depth {
             let q = beta.max_component().min(0.95);
             if rng.next_f32() >= q {
                 break;

@@ -54,6 +54,25 @@ pub fn pair_mean_se(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
     (m, se)
 }
 
+/// Block T between two estimators, each rendered twice: mean_b (avg₁ − avg₂)² over
+/// mean_b of both averages' variances from their own pairs' differences. ≈ 1 when the two
+/// estimate the same image.
+pub fn pair_block_t(a1: &Image, a2: &Image, b1: &Image, b2: &Image) -> f64 {
+    let [a1, a2, b1, b2] = [a1, a2, b1, b2].map(|i| block_means(i, 8));
+    let (mut num, mut den) = (0.0, 0.0);
+    for i in 0..a1.len() {
+        for c in 0..3 {
+            num += (0.5 * (a1[i][c] + a2[i][c]) - 0.5 * (b1[i][c] + b2[i][c])).powi(2);
+            den += (a1[i][c] - a2[i][c]).powi(2) / 4.0 + (b1[i][c] - b2[i][c]).powi(2) / 4.0;
+        }
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        1.0
+    }
+}
+
 /// Outcome of comparing two independent renders with a reference.
 #[derive(Debug)]
 pub struct Comparison {
@@ -98,7 +117,7 @@ pub fn compare(fa: &Film, fb: &Film, reference: &Image, reference_variance: &Ima
 /// `spp` samples and scaled to the reference's sample count.
 pub fn reference_noise(scene: &Scene, spp: u32, ref_spp: u32) -> Image {
     let pt = skelight::integrator::by_name("pt").expect("pt");
-    let var = render_spp(scene, pt.as_ref(), spp, 0x5EED_0F_4E5E).variance_image();
+    let var = render_spp(scene, pt.as_ref(), spp, 0x005E_ED0F_4E5E).variance_image();
     let scale = spp as f32 / ref_spp as f32;
     Image { pixels: var.pixels.iter().map(|p| *p * scale).collect(), ..var }
 }
