@@ -409,7 +409,7 @@ pub fn write_report(study: &Study, reference: &Image, dir: &Path) -> Result<()> 
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let write = |name: &str, text: &str| -> Result<()> {
         let p = dir.join(name);
-        skelight::imageio::write_atomically(&p, |tmp| std::fs::write(tmp, text).map_err(|e| e.to_string()))
+        skelight::imageio::write_file_atomically(&p, text.as_bytes())
             .map_err(anyhow::Error::msg)
             .with_context(|| format!("writing {}", p.display()))
     };

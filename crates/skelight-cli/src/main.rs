@@ -12,6 +12,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use skelight::checkpoint::Checkpoint;
 use skelight::eval;
 use skelight::imageio::Image;
+use skelight::integrator::bpt::Bpt;
+use skelight::integrator::mis::Heuristic;
 use skelight::integrator::{self, RenderOptions};
 use skelight::scene::{self, Scene};
 
@@ -207,6 +209,18 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
+    /// bpt's MIS heuristic: balance or power.
+    #[arg(long, default_value = "balance", value_parser = parse_heuristic)]
+    heuristic: Heuristic,
+    /// bpt only: also write each (s, t) strategy's weighted contribution to DIR/sS_tT.exr
+    /// (and .png, and their means to DIR/strategies.csv). Renders once per strategy with the
+    /// same random numbers, so the images add up to the full render.
+    #[arg(long, value_name = "DIR")]
+    debug_strategies: Option<PathBuf>,
+}
+
+fn parse_heuristic(s: &str) -> Result<Heuristic, String> {
+    Heuristic::parse(s).ok_or_else(|| format!("unknown heuristic '{s}'; use balance or power"))
 }
 
 fn parse_define(s: &str) -> Result<(String, String), String> {
@@ -463,8 +477,41 @@ fn summary(r: &integrator::RenderResult, pixels: usize, img: &Image, output: &Pa
 }
 
 fn render(args: RenderArgs) -> Result<()> {
-    let job =
+    let mut job =
         Job::new(args.scene.as_deref(), &args.define, &args.setup, &args.integrator, args.spp, args.time, args.seed)?;
+    let bpt = |only| Box::new(Bpt { max_depth: None, heuristic: args.heuristic, only });
+    if job.integrator.name() == "bpt" {
+        job.integrator = bpt(None);
+    } else if args.heuristic != Heuristic::Balance || args.debug_strategies.is_some() {
+        bail!("--heuristic and --debug-strategies apply to --integrator bpt");
+    }
+    if let Some(dir) = &args.debug_strategies {
+        if job.opts.spp.is_none() {
+            bail!("--debug-strategies needs --spp: every strategy must see the same samples");
+        }
+        let max_depth = job.scene.settings.max_depth;
+        if !(1..=16).contains(&max_depth) {
+            bail!("--debug-strategies needs a max depth from 1 to 16 (--max-depth), not {max_depth}");
+        }
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let mut csv = String::from("s,t,segments,mean_r,mean_g,mean_b\n");
+        // Paths of k segments have k + 1 vertices: strategies s + t = k + 1.
+        for vertices in 2..=max_depth as usize + 1 {
+            for s in 0..=vertices {
+                let t = vertices - s;
+                job.integrator = bpt(Some((s, t)));
+                let r = job.run(None, args.quiet, |_, _| Ok(()))?;
+                let out = dir.join(format!("s{s}_t{t}.exr"));
+                let m = write_outputs(&r.film, r.spp, &out, args.exposure)?.mean();
+                csv += &format!("{s},{t},{},{},{},{}\n", vertices - 1, m.r, m.g, m.b);
+            }
+        }
+        let csv_path = dir.join("strategies.csv");
+        skelight::imageio::write_file_atomically(&csv_path, csv.as_bytes())
+            .map_err(anyhow::Error::msg)
+            .with_context(|| format!("writing {}", csv_path.display()))?;
+        job.integrator = bpt(None);
+    }
     let r = job.run(None, args.quiet, |_, _| Ok(()))?;
     let img = write_outputs(&r.film, r.spp, &args.output, args.exposure)?;
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);

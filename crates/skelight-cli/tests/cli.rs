@@ -55,6 +55,55 @@ fn bad_arguments_fail_with_a_message() {
     }
 }
 
+/// `--debug-strategies` writes one image per (s, t) strategy of bpt; rendered with the same
+/// random numbers, they add up, pixel by pixel, to the full render.
+#[test]
+fn bpt_strategy_images_add_up_to_the_render() {
+    let d = tmp("strategies");
+    let (dir, full) = (d.join("strategies"), d.join("full.exr"));
+    run_ok(&[
+        "render",
+        "-i",
+        "bpt",
+        "--spp",
+        "2",
+        "--resolution",
+        "24",
+        "16",
+        "--max-depth",
+        "3",
+        "--debug-strategies",
+        dir.to_str().unwrap(),
+        "-o",
+        full.to_str().unwrap(),
+        "-q",
+    ]);
+    let full = Image::load(&full).unwrap();
+    let mut sum = vec![[0.0f64; 3]; full.pixels.len()];
+    let mut count = 0;
+    for vertices in 2..=4 {
+        for s in 0..=vertices {
+            let img = Image::load(&dir.join(format!("s{s}_t{}.exr", vertices - s))).unwrap();
+            for (acc, p) in sum.iter_mut().zip(&img.pixels) {
+                for (a, v) in acc.iter_mut().zip(p.to_array()) {
+                    *a += v as f64;
+                }
+            }
+            count += 1;
+        }
+    }
+    assert_eq!(count, 12);
+    let csv = std::fs::read_to_string(dir.join("strategies.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 13, "{csv}");
+    for (acc, p) in sum.iter().zip(&full.pixels) {
+        for (a, v) in acc.iter().zip(p.to_array()) {
+            assert!((a - v as f64).abs() <= 1e-4 * (v as f64).abs().max(1e-2), "strategies sum to {a}, render {v}");
+        }
+    }
+    let out = bin().args(["render", "-i", "pt", "--debug-strategies", dir.to_str().unwrap()]).output().unwrap();
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("apply to --integrator bpt"));
+}
+
 /// Kill a reference render between checkpoints, resume it: the result is identical, bit for
 /// bit, to an uninterrupted render with the same seed.
 #[test]

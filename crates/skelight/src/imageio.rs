@@ -175,6 +175,11 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), Str
     }
 }
 
+/// Writes `bytes` to `path` through a temporary file (see [`write_atomically`]).
+pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    write_atomically(path, |tmp| std::fs::write(tmp, bytes).map_err(|e| e.to_string()))
+}
+
 fn load_exr(path: &Path) -> Result<(Image, Vec<(String, f64)>), String> {
     use exr::prelude::*;
     let img = read_first_rgba_layer_from_file(
