@@ -8,7 +8,7 @@ use crate::grid::Grid;
 const INF: u32 = u32::MAX / 4;
 
 /// The axis lines of the grid: (start index, stride, length) for every line along `axis`.
-fn lines(dims: [usize; 3], axis: usize) -> Vec<(usize, usize, usize)> {
+pub(crate) fn lines(dims: [usize; 3], axis: usize) -> Vec<(usize, usize, usize)> {
     let stride = [1, dims[0], dims[0] * dims[1]];
     let (a, b) = match axis {
         0 => (1, 2),

@@ -1,9 +1,10 @@
 //! Discrete shape analysis of the empty space of a scene (thesis ch. 5–6): voxelisation,
-//! distance maps, and — to come — opening maps, cubical-complex thinning and the
+//! distance maps, opening maps and forests, and — to come — cubical-complex thinning and the
 //! curvilinear skeleton. No renderer dependency: input is plain triangles.
 
 pub mod distance;
 pub mod grid;
+pub mod opening;
 pub mod voxelize;
 
 pub use grid::{Grid, GridError, GridSpec};

@@ -1,0 +1,179 @@
+//! The 26-opening map and an opening forest of a set (thesis §10.3.1 and §10.3.3,
+//! Alg. 6–7). With D the chessboard distance to the outside, the maximal ball of a voxel y is
+//! the cube B(y) = {x : d∞(x, y) < D(y)}; the opening π(x) is the largest D(y) over the balls
+//! that contain x, and the forest links x to the centre of one such ball (itself when its
+//! own ball is the largest). Cubes are products of intervals, so the dilation is separable:
+//! each axis line is dilated forwards and backwards with a queue of the balls still
+//! covering the current voxel, in time linear in the number of voxels.
+
+use std::collections::VecDeque;
+
+use crate::distance::lines;
+use crate::grid::Grid;
+
+/// The opening map and an opening forest.
+pub struct Opening {
+    /// π(x): radius of the largest maximal ball containing x (0 outside the set).
+    pub radius: Grid<u32>,
+    /// Linear index of the centre of a maximal ball of radius π(x) containing x; x itself
+    /// exactly when π(x) = D(x) (Def. 10.7).
+    pub centre: Grid<u32>,
+}
+
+/// Computes the opening map and forest from the chessboard distance map `distance`
+/// (see [`crate::distance::chessboard`]).
+pub fn opening(distance: &Grid<u32>) -> Opening {
+    let spec = distance.spec;
+    assert!(spec.len() <= u32::MAX as usize, "grid too large for 32-bit voxel indices");
+    let mut radius = distance.data.clone();
+    let mut centre: Vec<u32> = (0..spec.len() as u32).collect();
+    let mut queue = VecDeque::new();
+    for axis in 0..3 {
+        for (start, stride, n) in lines(spec.dims, axis) {
+            for forward in [true, false] {
+                dilate_line(&mut radius, &mut centre, start, stride, n, forward, &mut queue);
+            }
+        }
+    }
+    Opening { radius: Grid { spec, data: radius }, centre: Grid { spec, data: centre } }
+}
+
+/// A ball seen along one line: its radius, its centre and the first position (counted in
+/// the scan's direction) it no longer covers.
+#[derive(Clone, Copy)]
+struct LineBall {
+    radius: u32,
+    centre: u32,
+    end: u64,
+}
+
+/// Alg. 7 on the line `start + k·stride` (k < n), scanned forwards or backwards: every
+/// voxel takes the largest ball, among those met so far, that still covers it. The queue
+/// holds candidates by decreasing radius and increasing reach; at equal radius the voxel's
+/// own entry wins, so a voxel whose own ball is the largest stays a root.
+fn dilate_line(
+    radius: &mut [u32],
+    centre: &mut [u32],
+    start: usize,
+    stride: usize,
+    n: usize,
+    forward: bool,
+    queue: &mut VecDeque<LineBall>,
+) {
+    queue.clear();
+    for step in 0..n {
+        let k = if forward { step } else { n - 1 - step };
+        let i = start + k * stride;
+        let current = LineBall { radius: radius[i], centre: centre[i], end: step as u64 + radius[i] as u64 };
+        if current.radius == 0 {
+            queue.clear();
+        } else if queue.front().is_some_and(|f| f.end == step as u64) {
+            queue.pop_front();
+        }
+        match queue.front() {
+            Some(front) if current.radius < front.radius => {
+                while queue.back().is_some_and(|b| current.radius >= b.radius) {
+                    queue.pop_back();
+                }
+                if queue.back().is_none_or(|b| b.end < current.end) {
+                    queue.push_back(current);
+                }
+            }
+            _ => {
+                queue.clear();
+                queue.push_back(current);
+            }
+        }
+        let front = queue.front().expect("the queue holds at least the current voxel's ball or a larger one");
+        radius[i] = front.radius;
+        centre[i] = front.centre;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::distance::chessboard;
+    use crate::grid::GridSpec;
+
+    fn random_set(dims: [usize; 3], seed: u64, density: f64) -> Grid<bool> {
+        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims };
+        let mut g = Grid::new(spec, true);
+        let mut s = seed;
+        for v in g.data.iter_mut() {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            *v = ((s >> 33) as f64 / (1u64 << 31) as f64) > density;
+        }
+        g
+    }
+
+    fn coords(spec: &GridSpec, i: usize) -> [i64; 3] {
+        let [nx, ny, _] = spec.dims;
+        [(i % nx) as i64, ((i / nx) % ny) as i64, (i / (nx * ny)) as i64]
+    }
+
+    fn chebyshev(a: [i64; 3], b: [i64; 3]) -> u64 {
+        (0..3).map(|k| (a[k] - b[k]).unsigned_abs()).max().unwrap()
+    }
+
+    /// Def. 10.4 by brute force, and Def. 10.7 checked for the forest.
+    #[test]
+    fn opening_and_forest_match_their_definitions() {
+        for (i, dims) in [[9, 7, 6], [1, 12, 5], [14, 4, 3], [6, 6, 6]].into_iter().enumerate() {
+            for density in [0.03, 0.15, 0.4] {
+                for border in [true, false] {
+                    let set = random_set(dims, 7 + i as u64, density);
+                    let d = chessboard(&set, border);
+                    if d.data.iter().any(|&v| v >= u32::MAX / 4) {
+                        continue; // no outside at all: every ball is unbounded
+                    }
+                    let o = opening(&d);
+                    let spec = set.spec;
+                    for x in 0..spec.len() {
+                        let cx = coords(&spec, x);
+                        let expected = (0..spec.len())
+                            .filter(|&y| chebyshev(cx, coords(&spec, y)) < d.data[y] as u64)
+                            .map(|y| d.data[y])
+                            .max()
+                            .unwrap_or(0);
+                        assert_eq!(o.radius.data[x], expected, "{dims:?} {density} {border}: opening at {cx:?}");
+                        if expected == 0 {
+                            continue;
+                        }
+                        let c = o.centre.data[x] as usize;
+                        assert_eq!(d.data[c], expected, "the forest links to a ball of radius π(x)");
+                        assert!(chebyshev(cx, coords(&spec, c)) < d.data[c] as u64, "x lies in its parent's ball");
+                        assert_eq!(c == x, expected == d.data[x], "roots are exactly the voxels with π = D");
+                    }
+                }
+            }
+        }
+    }
+
+    /// A room of 9×9×9 empty voxels joined to a 3-wide corridor: the room's voxels open to
+    /// the room's ball (radius 5, its centre the room's centre), the corridor's to 2.
+    #[test]
+    fn a_room_opens_wider_than_its_corridor() {
+        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims: [20, 11, 11] };
+        let mut set = Grid::new(spec, false);
+        for z in 1..10 {
+            for y in 1..10 {
+                for x in 1..10 {
+                    set.set(x, y, z, true);
+                }
+            }
+        }
+        for x in 10..19 {
+            for y in 4..7 {
+                for z in 4..7 {
+                    set.set(x, y, z, true);
+                }
+            }
+        }
+        let o = opening(&chessboard(&set, true));
+        assert_eq!(*o.radius.get(1, 1, 1), 5);
+        assert_eq!(*o.centre.get(1, 1, 1) as usize, spec.index(5, 5, 5));
+        assert_eq!(*o.radius.get(15, 5, 5), 2);
+        assert_eq!(*o.radius.get(0, 0, 0), 0);
+    }
+}
