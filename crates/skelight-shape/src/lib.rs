@@ -4,6 +4,7 @@
 
 pub mod distance;
 pub mod grid;
+pub mod labels;
 pub mod opening;
 pub mod voxelize;
 

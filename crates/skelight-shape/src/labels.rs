@@ -1,0 +1,238 @@
+//! The opening-forest labelling of the empty space and its opening portals (thesis
+//! §10.3.3–10.3.4, Def. 10.8–10.12). Region roots are 6-connected sets of forest roots of
+//! equal opening; every other voxel takes the label of the root its forest chain reaches.
+//! A portal is the set of 2-faces between 6-adjacent voxels of two regions: rays sampled
+//! through it go from one region to the other.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use crate::grid::Grid;
+use crate::opening::Opening;
+
+/// Label of voxels outside the set.
+pub const NO_LABEL: u32 = 0;
+
+/// Region labels 1…count (0 outside the set).
+pub struct Labelling {
+    pub labels: Grid<u32>,
+    pub count: u32,
+}
+
+/// Def. 10.8–10.9: labels the region roots, then propagates along the forest.
+pub fn opening_forest_labelling(o: &Opening) -> Labelling {
+    let spec = o.radius.spec;
+    let (radius, centre) = (&o.radius.data, &o.centre.data);
+    let n = spec.len();
+    let mut labels = vec![NO_LABEL; n];
+    let is_root = |i: usize| radius[i] > 0 && centre[i] as usize == i;
+    let mut count = 0;
+    let mut queue = VecDeque::new();
+    for seed in 0..n {
+        if !is_root(seed) || labels[seed] != NO_LABEL {
+            continue;
+        }
+        count += 1;
+        labels[seed] = count;
+        queue.push_back(seed);
+        while let Some(i) = queue.pop_front() {
+            for j in neighbours6(spec.dims, i) {
+                if labels[j] == NO_LABEL && is_root(j) && radius[j] == radius[seed] {
+                    labels[j] = count;
+                    queue.push_back(j);
+                }
+            }
+        }
+    }
+    // Along a chain x → f(x) → … the opening strictly grows until a root, so chains end.
+    let mut chain = Vec::new();
+    for start in 0..n {
+        if radius[start] == 0 || labels[start] != NO_LABEL {
+            continue;
+        }
+        let mut i = start;
+        while labels[i] == NO_LABEL {
+            chain.push(i);
+            i = centre[i] as usize;
+        }
+        let label = labels[i];
+        for j in chain.drain(..) {
+            labels[j] = label;
+        }
+    }
+    Labelling { labels: Grid { spec, data: labels }, count }
+}
+
+/// Linear indices of the 6-neighbours of voxel `i` inside the grid.
+fn neighbours6(dims: [usize; 3], i: usize) -> impl Iterator<Item = usize> {
+    let [nx, ny, nz] = dims;
+    let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+    let plane = nx * ny;
+    [
+        (x > 0).then(|| i - 1),
+        (x + 1 < nx).then(|| i + 1),
+        (y > 0).then(|| i - nx),
+        (y + 1 < ny).then(|| i + nx),
+        (z > 0).then(|| i - plane),
+        (z + 1 < nz).then(|| i + plane),
+    ]
+    .into_iter()
+    .flatten()
+}
+
+/// The portal between regions `from` < `to` (Def. 10.12).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Portal {
+    pub from: u32,
+    pub to: u32,
+    /// Number of 2-faces.
+    pub faces: usize,
+    /// World-space area.
+    pub area: f64,
+    /// Area-weighted centre of its faces (world space).
+    pub centroid: [f64; 3],
+    /// Mean of the faces' unit normals oriented from `from` to `to`, normalised (zero if
+    /// they cancel, as for a portal that wraps around a region).
+    pub normal: [f64; 3],
+}
+
+/// Running sums over one portal's faces.
+#[derive(Default)]
+struct FaceSums {
+    faces: usize,
+    centres: [f64; 3],
+    normals: [f64; 3],
+}
+
+/// Every opening portal: the faces between 6-adjacent voxels of different regions.
+pub fn portals(l: &Labelling) -> Vec<Portal> {
+    let spec = l.labels.spec;
+    let [nx, ny, _] = spec.dims;
+    let labels = &l.labels.data;
+    let mut acc: BTreeMap<(u32, u32), FaceSums> = BTreeMap::new();
+    for i in 0..spec.len() {
+        let a = labels[i];
+        if a == NO_LABEL {
+            continue;
+        }
+        let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+        let c = spec.center(x, y, z);
+        // Each face once: towards +x, +y, +z.
+        let [nx_, ny_, nz_] = spec.dims;
+        let ahead = [(x + 1 < nx_, 1), (y + 1 < ny_, nx), (z + 1 < nz_, nx * ny)];
+        for (axis, j) in ahead.iter().enumerate().filter(|(_, (inside, _))| *inside).map(|(k, (_, step))| (k, i + step))
+        {
+            let b = labels[j];
+            if b == NO_LABEL || b == a {
+                continue;
+            }
+            let (from, to, sign) = if a < b { (a, b, 1.0) } else { (b, a, -1.0) };
+            let e = acc.entry((from, to)).or_default();
+            e.faces += 1;
+            for (k, sum) in e.centres.iter_mut().enumerate() {
+                *sum += c[k] + if k == axis { 0.5 * spec.voxel } else { 0.0 };
+            }
+            e.normals[axis] += sign;
+        }
+    }
+    let face_area = spec.voxel * spec.voxel;
+    acc.into_iter()
+        .map(|((from, to), FaceSums { faces, centres: sum_c, normals: sum_n })| {
+            let len = (sum_n[0] * sum_n[0] + sum_n[1] * sum_n[1] + sum_n[2] * sum_n[2]).sqrt();
+            let normal = if len > 0.0 { sum_n.map(|v| v / len) } else { [0.0; 3] };
+            Portal {
+                from,
+                to,
+                faces,
+                area: faces as f64 * face_area,
+                centroid: sum_c.map(|v| v / faces as f64),
+                normal,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::distance::chessboard;
+    use crate::grid::GridSpec;
+    use crate::opening::opening;
+
+    /// Two 7-wide rooms joined by a 1×3 gap in a wall: each room is one region and the
+    /// only portal between them lies in the gap (or beside it), facing along x.
+    #[test]
+    fn two_rooms_meet_at_one_portal_in_the_door() {
+        let spec = GridSpec { origin: [0.0; 3], voxel: 0.5, dims: [17, 9, 9] };
+        let mut set = Grid::new(spec, false);
+        for z in 1..8 {
+            for y in 1..8 {
+                for x in 1..16 {
+                    // Wall at x = 8 with a gap at y = 4, z = 3..6.
+                    if x != 8 || (y == 4 && (3..6).contains(&z)) {
+                        set.set(x, y, z, true);
+                    }
+                }
+            }
+        }
+        let o = opening(&chessboard(&set, true));
+        let l = opening_forest_labelling(&o);
+        let (left, right) = (*l.labels.get(4, 4, 4), *l.labels.get(12, 4, 4));
+        assert!(left != NO_LABEL && right != NO_LABEL && left != right);
+        // Every voxel of a room carries its room's label.
+        for z in 1..8 {
+            for y in 1..8 {
+                for x in 1..8 {
+                    assert_eq!(*l.labels.get(x, y, z), left, "({x},{y},{z})");
+                    assert_eq!(*l.labels.get(x + 8, y, z), right, "({},{y},{z})", x + 8);
+                }
+            }
+        }
+        let ps = portals(&l);
+        // The gap's voxels form their own thin region or join a room; either way the rooms
+        // are connected only through portals at the wall.
+        assert!(!ps.is_empty());
+        for p in &ps {
+            assert!((p.centroid[0] - 4.25).abs() <= 0.5 + 1e-9, "portal off the wall: {p:?}");
+            assert!(p.normal[0].abs() > 0.99, "{p:?}");
+            assert_eq!(p.area, p.faces as f64 * 0.25);
+        }
+        assert_eq!(l.count as usize, 2 + ps.len() - 1);
+    }
+
+    /// Every voxel of the set is labelled, its label's region contains a root, and the
+    /// regions are 6-connected.
+    #[test]
+    fn labels_cover_the_set_with_connected_regions() {
+        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims: [12, 10, 8] };
+        let mut set = Grid::new(spec, true);
+        let mut s = 99u64;
+        for v in set.data.iter_mut() {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            *v = (s >> 60) > 2;
+        }
+        let o = opening(&chessboard(&set, true));
+        let l = opening_forest_labelling(&o);
+        for label in 1..=l.count {
+            let members: Vec<usize> = (0..spec.len()).filter(|&i| l.labels.data[i] == label).collect();
+            assert!(!members.is_empty());
+            // Flood from the first member within the label.
+            let mut seen = vec![false; spec.len()];
+            let mut queue = VecDeque::from([members[0]]);
+            seen[members[0]] = true;
+            let mut reached = 0;
+            while let Some(i) = queue.pop_front() {
+                reached += 1;
+                for j in neighbours6(spec.dims, i) {
+                    if !seen[j] && l.labels.data[j] == label {
+                        seen[j] = true;
+                        queue.push_back(j);
+                    }
+                }
+            }
+            assert_eq!(reached, members.len(), "region {label} is not 6-connected");
+        }
+        for i in 0..spec.len() {
+            assert_eq!(set.data[i], l.labels.data[i] != NO_LABEL);
+        }
+    }
+}
