@@ -93,6 +93,23 @@ impl<T: Clone> Grid<T> {
     }
 }
 
+/// Linear indices of the 6-neighbours of voxel `i` inside the grid.
+pub fn neighbours6(dims: [usize; 3], i: usize) -> impl Iterator<Item = usize> {
+    let [nx, ny, nz] = dims;
+    let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+    let plane = nx * ny;
+    [
+        (x > 0).then(|| i - 1),
+        (x + 1 < nx).then(|| i + 1),
+        (y > 0).then(|| i - nx),
+        (y + 1 < ny).then(|| i + nx),
+        (z > 0).then(|| i - plane),
+        (z + 1 < nz).then(|| i + plane),
+    ]
+    .into_iter()
+    .flatten()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

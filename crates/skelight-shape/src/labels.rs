@@ -6,7 +6,7 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use crate::grid::Grid;
+use crate::grid::{neighbours6, Grid};
 use crate::opening::Opening;
 
 /// Label of voxels outside the set.
@@ -60,23 +60,6 @@ pub fn opening_forest_labelling(o: &Opening) -> Labelling {
         }
     }
     Labelling { labels: Grid { spec, data: labels }, count }
-}
-
-/// Linear indices of the 6-neighbours of voxel `i` inside the grid.
-fn neighbours6(dims: [usize; 3], i: usize) -> impl Iterator<Item = usize> {
-    let [nx, ny, nz] = dims;
-    let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
-    let plane = nx * ny;
-    [
-        (x > 0).then(|| i - 1),
-        (x + 1 < nx).then(|| i + 1),
-        (y > 0).then(|| i - nx),
-        (y + 1 < ny).then(|| i + nx),
-        (z > 0).then(|| i - plane),
-        (z + 1 < nz).then(|| i + plane),
-    ]
-    .into_iter()
-    .flatten()
 }
 
 /// The portal between regions `from` < `to` (Def. 10.12).

@@ -9,7 +9,7 @@
 use std::collections::VecDeque;
 
 use crate::distance::lines;
-use crate::grid::Grid;
+use crate::grid::{neighbours6, Grid};
 
 /// The opening map and an opening forest.
 pub struct Opening {
@@ -90,6 +90,68 @@ fn dilate_line(
     }
 }
 
+/// The L1 opening function π₁ (thesis §6.2.2): for every voxel, the largest D₁(y) over the
+/// maximal L1 balls {x : d₁(x, y) < D₁(y)} that contain it; 0 outside the set. Balls are
+/// spread in decreasing order of radius by a breadth-first walk with a step budget, so a
+/// voxel keeps the first (largest) radius that reaches it. `l1` is the L1 distance map.
+pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
+    let spec = l1.spec;
+    let d = &l1.data;
+    let mut by_radius: Vec<(u32, u32)> =
+        (0..d.len() as u32).filter(|&i| d[i as usize] > 0).map(|i| (d[i as usize], i)).collect();
+    by_radius.sort_unstable_by_key(|&(r, _)| std::cmp::Reverse(r));
+    let mut opening = vec![0u32; d.len()];
+    // Budget left when the walk for the current radius reached a voxel (+1; 0 = not yet).
+    let mut reached = vec![0u32; d.len()];
+    let mut touched = Vec::new();
+    let mut frontier = Vec::new();
+    let mut next = Vec::new();
+    for group in by_radius.chunk_by(|a, b| a.0 == b.0) {
+        let r = group[0].0;
+        for &(_, i) in group {
+            let i = i as usize;
+            if reached[i] < r {
+                reached[i] = r;
+                touched.push(i);
+                frontier.push(i);
+            }
+        }
+        // Budget b = r − steps; a voxel at L1 distance < r from a centre gets b ≥ 1.
+        let mut budget = r;
+        while budget > 1 && !frontier.is_empty() {
+            budget -= 1;
+            for &i in &frontier {
+                for j in neighbours6(spec.dims, i) {
+                    if d[j] > 0 && reached[j] < budget {
+                        reached[j] = budget;
+                        touched.push(j);
+                        next.push(j);
+                    }
+                }
+            }
+            std::mem::swap(&mut frontier, &mut next);
+            next.clear();
+        }
+        frontier.clear();
+        for &i in &touched {
+            if opening[i] == 0 {
+                opening[i] = r;
+            }
+            reached[i] = 0;
+        }
+        touched.clear();
+    }
+    Grid { spec, data: opening }
+}
+
+/// Decenterness DC₁ = π₁ − D₁ (Def. 6.4): 0 on the centres of the largest balls, growing
+/// towards the border of thin parts that lie inside larger balls.
+pub fn decenterness(l1: &Grid<u32>) -> Grid<u32> {
+    let opening = l1_opening(l1);
+    let data = opening.data.iter().zip(&l1.data).map(|(&o, &d)| o.saturating_sub(d)).collect();
+    Grid { spec: l1.spec, data }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -145,6 +207,34 @@ mod tests {
                         assert!(chebyshev(cx, coords(&spec, c)) < d.data[c] as u64, "x lies in its parent's ball");
                         assert_eq!(c == x, expected == d.data[x], "roots are exactly the voxels with π = D");
                     }
+                }
+            }
+        }
+    }
+
+    /// π₁ by its definition, brute force.
+    #[test]
+    fn l1_opening_matches_its_definition() {
+        use crate::distance::l1;
+        for (i, dims) in [[9, 7, 6], [1, 12, 5], [11, 4, 3]].into_iter().enumerate() {
+            for density in [0.03, 0.15, 0.4] {
+                let set = random_set(dims, 5 + i as u64, density);
+                let d = l1(&set, true);
+                let o = l1_opening(&d);
+                let dc = decenterness(&d);
+                let spec = set.spec;
+                for x in 0..spec.len() {
+                    let cx = coords(&spec, x);
+                    let expected = (0..spec.len())
+                        .filter(|&y| {
+                            let cy = coords(&spec, y);
+                            (0..3).map(|k| (cx[k] - cy[k]).unsigned_abs()).sum::<u64>() < d.data[y] as u64
+                        })
+                        .map(|y| d.data[y])
+                        .max()
+                        .unwrap_or(0);
+                    assert_eq!(o.data[x], expected, "{dims:?} {density}: π₁ at {cx:?}");
+                    assert_eq!(dc.data[x], expected.saturating_sub(d.data[x]));
                 }
             }
         }
