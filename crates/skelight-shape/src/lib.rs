@@ -4,8 +4,9 @@
 
 pub mod distance;
 pub mod grid;
-pub mod labels;
+pub mod labeling;
 pub mod opening;
+pub mod portals;
 pub mod voxelize;
 
 pub use grid::{Grid, GridError, GridSpec};

@@ -1,66 +1,10 @@
-//! The opening-forest labelling of the empty space and its opening portals (thesis
-//! §10.3.3–10.3.4, Def. 10.8–10.12). Region roots are 6-connected sets of forest roots of
-//! equal opening; every other voxel takes the label of the root its forest chain reaches.
-//! A portal is the set of 2-faces between 6-adjacent voxels of two regions: rays sampled
-//! through it go from one region to the other.
+//! Opening portals (thesis §10.3.4, Def. 10.11–10.12): the set of 2-faces between
+//! 6-adjacent voxels of two opening-forest regions. Rays sampled through a portal go from
+//! one region to the other.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 
-use crate::grid::{neighbours6, Grid};
-use crate::opening::Opening;
-
-/// Label of voxels outside the set.
-pub const NO_LABEL: u32 = 0;
-
-/// Region labels 1…count (0 outside the set).
-pub struct Labelling {
-    pub labels: Grid<u32>,
-    pub count: u32,
-}
-
-/// Def. 10.8–10.9: labels the region roots, then propagates along the forest.
-pub fn opening_forest_labelling(o: &Opening) -> Labelling {
-    let spec = o.radius.spec;
-    let (radius, centre) = (&o.radius.data, &o.centre.data);
-    let n = spec.len();
-    let mut labels = vec![NO_LABEL; n];
-    let is_root = |i: usize| radius[i] > 0 && centre[i] as usize == i;
-    let mut count = 0;
-    let mut queue = VecDeque::new();
-    for seed in 0..n {
-        if !is_root(seed) || labels[seed] != NO_LABEL {
-            continue;
-        }
-        count += 1;
-        labels[seed] = count;
-        queue.push_back(seed);
-        while let Some(i) = queue.pop_front() {
-            for j in neighbours6(spec.dims, i) {
-                if labels[j] == NO_LABEL && is_root(j) && radius[j] == radius[seed] {
-                    labels[j] = count;
-                    queue.push_back(j);
-                }
-            }
-        }
-    }
-    // Along a chain x → f(x) → … the opening strictly grows until a root, so chains end.
-    let mut chain = Vec::new();
-    for start in 0..n {
-        if radius[start] == 0 || labels[start] != NO_LABEL {
-            continue;
-        }
-        let mut i = start;
-        while labels[i] == NO_LABEL {
-            chain.push(i);
-            i = centre[i] as usize;
-        }
-        let label = labels[i];
-        for j in chain.drain(..) {
-            labels[j] = label;
-        }
-    }
-    Labelling { labels: Grid { spec, data: labels }, count }
-}
+use crate::labeling::{Labelling, NO_LABEL};
 
 /// The portal between regions `from` < `to` (Def. 10.12).
 #[derive(Clone, Debug, PartialEq)]
@@ -138,7 +82,8 @@ pub fn portals(l: &Labelling) -> Vec<Portal> {
 mod tests {
     use super::*;
     use crate::distance::chessboard;
-    use crate::grid::GridSpec;
+    use crate::grid::{Grid, GridSpec};
+    use crate::labeling::opening_forest_labelling;
     use crate::opening::opening;
 
     /// Two 7-wide rooms joined by a 1×3 gap in a wall: each room is one region and the
@@ -180,42 +125,5 @@ mod tests {
             assert_eq!(p.area, p.faces as f64 * 0.25);
         }
         assert_eq!(l.count as usize, 2 + ps.len() - 1);
-    }
-
-    /// Every voxel of the set is labelled, its label's region contains a root, and the
-    /// regions are 6-connected.
-    #[test]
-    fn labels_cover_the_set_with_connected_regions() {
-        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims: [12, 10, 8] };
-        let mut set = Grid::new(spec, true);
-        let mut s = 99u64;
-        for v in set.data.iter_mut() {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            *v = (s >> 60) > 2;
-        }
-        let o = opening(&chessboard(&set, true));
-        let l = opening_forest_labelling(&o);
-        for label in 1..=l.count {
-            let members: Vec<usize> = (0..spec.len()).filter(|&i| l.labels.data[i] == label).collect();
-            assert!(!members.is_empty());
-            // Flood from the first member within the label.
-            let mut seen = vec![false; spec.len()];
-            let mut queue = VecDeque::from([members[0]]);
-            seen[members[0]] = true;
-            let mut reached = 0;
-            while let Some(i) = queue.pop_front() {
-                reached += 1;
-                for j in neighbours6(spec.dims, i) {
-                    if !seen[j] && l.labels.data[j] == label {
-                        seen[j] = true;
-                        queue.push_back(j);
-                    }
-                }
-            }
-            assert_eq!(reached, members.len(), "region {label} is not 6-connected");
-        }
-        for i in 0..spec.len() {
-            assert_eq!(set.data[i], l.labels.data[i] != NO_LABEL);
-        }
     }
 }
