@@ -1,0 +1,179 @@
+//! Cubical complexes on a voxel grid (thesis §5.2). Faces are stored in the doubled
+//! ("Khalimsky") grid of (2w+1)×(2h+1)×(2d+1) cells: a coordinate is odd where the face
+//! spans an interval {a, a+1} along that axis and even where it is the point {a}, so a
+//! face's dimension is its number of odd coordinates and voxel (x, y, z) is the 3-face
+//! at (2x+1, 2y+1, 2z+1). The faces of a face differ from it by ±1 in one odd coordinate;
+//! the faces containing it by ±1 in one even coordinate.
+
+use std::collections::VecDeque;
+
+use crate::grid::Grid;
+
+/// A set of faces of the doubled grid; [`Complex::from_voxels`] makes it closed (a complex).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Complex {
+    /// Doubled-grid dimensions (2·voxels + 1 on each axis).
+    pub dims: [usize; 3],
+    pub cells: Vec<bool>,
+}
+
+impl Complex {
+    /// The complex of a voxel set: the closure of its 3-faces.
+    pub fn from_voxels(set: &Grid<bool>) -> Complex {
+        let [w, h, d] = set.spec.dims;
+        let dims = [2 * w + 1, 2 * h + 1, 2 * d + 1];
+        let mut c = Complex { dims, cells: vec![false; dims[0] * dims[1] * dims[2]] };
+        for z in 0..d {
+            for y in 0..h {
+                for x in 0..w {
+                    if !*set.get(x, y, z) {
+                        continue;
+                    }
+                    for dz in 0..3 {
+                        for dy in 0..3 {
+                            for dx in 0..3 {
+                                let i = c.index([2 * x + dx, 2 * y + dy, 2 * z + dz]);
+                                c.cells[i] = true;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        c
+    }
+
+    #[inline]
+    pub fn index(&self, p: [usize; 3]) -> usize {
+        (p[2] * self.dims[1] + p[1]) * self.dims[0] + p[0]
+    }
+
+    #[inline]
+    pub fn coords(&self, i: usize) -> [usize; 3] {
+        let [nx, ny, _] = self.dims;
+        [i % nx, (i / nx) % ny, i / (nx * ny)]
+    }
+
+    /// Dimension of the face at `i`: how many of its coordinates are odd.
+    #[inline]
+    pub fn dim(&self, i: usize) -> usize {
+        self.coords(i).iter().map(|c| c & 1).sum()
+    }
+
+    #[inline]
+    pub fn contains(&self, i: usize) -> bool {
+        self.cells[i]
+    }
+
+    /// Faces of dimension one more that contain face `i` (inside the grid), with the axis
+    /// and sign of the step: `(index, axis, +1 / −1)`.
+    pub fn cofaces(&self, i: usize) -> impl Iterator<Item = (usize, usize, i8)> + '_ {
+        self.steps(i, 0)
+    }
+
+    /// Faces of dimension one less contained in face `i`, as `(index, axis, sign)`.
+    pub fn facets(&self, i: usize) -> impl Iterator<Item = (usize, usize, i8)> + '_ {
+        self.steps(i, 1)
+    }
+
+    /// Neighbours at ±1 along the axes where face `i`'s coordinate has the given parity.
+    fn steps(&self, i: usize, parity: usize) -> impl Iterator<Item = (usize, usize, i8)> + '_ {
+        let p = self.coords(i);
+        let stride = [1, self.dims[0], self.dims[0] * self.dims[1]];
+        (0..3).filter(move |&a| p[a] & 1 == parity).flat_map(move |a| {
+            let down = (p[a] > 0).then(|| (i - stride[a], a, -1i8));
+            let up = (p[a] + 1 < self.dims[a]).then(|| (i + stride[a], a, 1i8));
+            down.into_iter().chain(up)
+        })
+    }
+
+    /// Number of faces of the complex that contain face `i` and have one dimension more.
+    #[inline]
+    pub fn coface_count(&self, i: usize) -> usize {
+        self.cofaces(i).filter(|&(j, _, _)| self.cells[j]).count()
+    }
+
+    /// How many faces of each dimension the complex has.
+    pub fn face_counts(&self) -> [usize; 4] {
+        let mut n = [0; 4];
+        for (i, &inside) in self.cells.iter().enumerate() {
+            if inside {
+                n[self.dim(i)] += 1;
+            }
+        }
+        n
+    }
+
+    /// Euler characteristic: vertices − edges + squares − cubes.
+    pub fn euler_characteristic(&self) -> i64 {
+        let n = self.face_counts();
+        n[0] as i64 - n[1] as i64 + n[2] as i64 - n[3] as i64
+    }
+
+    /// Number of connected components (vertices joined by the complex's edges).
+    pub fn components(&self) -> usize {
+        let mut seen = vec![false; self.cells.len()];
+        let mut queue = VecDeque::new();
+        let mut count = 0;
+        for start in 0..self.cells.len() {
+            if !self.cells[start] || seen[start] || self.dim(start) != 0 {
+                continue;
+            }
+            count += 1;
+            seen[start] = true;
+            queue.push_back(start);
+            while let Some(v) = queue.pop_front() {
+                for (e, _, _) in self.cofaces(v) {
+                    if !self.cells[e] {
+                        continue;
+                    }
+                    for (w, _, _) in self.facets(e) {
+                        if self.cells[w] && !seen[w] {
+                            seen[w] = true;
+                            queue.push_back(w);
+                        }
+                    }
+                }
+            }
+        }
+        count
+    }
+
+    /// Whether the complex has no face of dimension 2 or more.
+    pub fn is_curvilinear(&self) -> bool {
+        let n = self.face_counts();
+        n[2] == 0 && n[3] == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::GridSpec;
+
+    fn voxels(dims: [usize; 3], on: &[[usize; 3]]) -> Grid<bool> {
+        let mut g = Grid::new(GridSpec { origin: [0.0; 3], voxel: 1.0, dims }, false);
+        for &[x, y, z] in on {
+            g.set(x, y, z, true);
+        }
+        g
+    }
+
+    #[test]
+    fn a_cube_and_a_ring_have_the_right_counts() {
+        let cube = Complex::from_voxels(&voxels([3, 3, 3], &[[1, 1, 1]]));
+        assert_eq!(cube.face_counts(), [8, 12, 6, 1]);
+        assert_eq!(cube.euler_characteristic(), 1);
+        assert_eq!(cube.components(), 1);
+        // A ring of 8 voxels around a hole: χ = 0.
+        let ring: Vec<[usize; 3]> =
+            (0..3).flat_map(|x| (0..3).map(move |y| [x, y, 0])).filter(|p| *p != [1, 1, 0]).collect();
+        let ring = Complex::from_voxels(&voxels([3, 3, 1], &ring));
+        assert_eq!(ring.euler_characteristic(), 0);
+        assert_eq!(ring.components(), 1);
+        // Two voxels touching at a corner are one component.
+        let two = Complex::from_voxels(&voxels([2, 2, 2], &[[0, 0, 0], [1, 1, 1]]));
+        assert_eq!(two.components(), 1);
+        assert_eq!(two.euler_characteristic(), 1);
+    }
+}
