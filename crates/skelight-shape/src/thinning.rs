@@ -191,7 +191,45 @@ pub fn curvilinear_skeleton(set: &Grid<bool>, constraint: EdgeConstraint) -> (Co
     }
     let mut skeleton = x;
     par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
+    // §6.2.4: surface parts (around cavities of the empty space, such as a floating light)
+    // are pierced, one square each, and the thinning resumes, until only curves remain.
+    // A closed surface needs one hole per enclosed cavity; each round makes one per part.
+    while pierce_surfaces(&mut skeleton) > 0 {
+        par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
+    }
     (skeleton, dates)
+}
+
+/// Removes one 2-face from every connected surface part of `x` (squares joined through
+/// shared edges): the square with the lowest index, a deterministic choice. Returns how
+/// many were removed. Breaks topology on purpose: a cavity becomes reachable.
+pub fn pierce_surfaces(x: &mut Complex) -> usize {
+    let n = x.cells.len();
+    let mut seen = vec![false; n];
+    let mut queue = std::collections::VecDeque::new();
+    let mut pierced = Vec::new();
+    for start in 0..n {
+        if !x.cells[start] || seen[start] || x.dim(start) != 2 {
+            continue;
+        }
+        pierced.push(start);
+        seen[start] = true;
+        queue.push_back(start);
+        while let Some(sq) = queue.pop_front() {
+            for (edge, _, _) in x.facets(sq) {
+                for (other, _, _) in x.cofaces(edge) {
+                    if x.cells[other] && !seen[other] {
+                        seen[other] = true;
+                        queue.push_back(other);
+                    }
+                }
+            }
+        }
+    }
+    for &sq in &pierced {
+        x.cells[sq] = false;
+    }
+    pierced.len()
 }
 
 /// Voxel indices (of the set's grid) of the 3-faces of `x`'s grid that contain face `i`.
@@ -352,6 +390,59 @@ mod tests {
             }
             assert!(pts.iter().all(|p| (6..=8).contains(&p[1]) && (6..=8).contains(&p[2])), "{constraint:?}: off axis");
         }
+    }
+
+    /// An L-shaped corridor gives one curve reaching into both arms.
+    #[test]
+    fn an_l_corridor_gives_an_l() {
+        let set = set_from([20, 20, 7], |x, y, z| {
+            let z_ok = (1..6).contains(&z);
+            let arm_x = (1..19).contains(&x) && (1..6).contains(&y);
+            let arm_y = (1..6).contains(&x) && (1..19).contains(&y);
+            z_ok && (arm_x || arm_y)
+        });
+        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis);
+        assert!(s.is_curvilinear());
+        assert_eq!(betti(&s), (1, 0, 0));
+        let pts: Vec<[usize; 3]> = (0..s.cells.len()).filter(|&i| s.cells[i]).map(|i| s.coords(i)).collect();
+        assert!(pts.iter().any(|p| p[0] >= 26 && p[1] <= 12), "no branch along the x arm");
+        assert!(pts.iter().any(|p| p[1] >= 26 && p[0] <= 12), "no branch along the y arm");
+    }
+
+    /// Two rooms joined by a narrow gap in a wall: one connected curve through the gap.
+    #[test]
+    fn two_rooms_and_an_ajar_door_give_two_parts_joined_through_the_gap() {
+        let set = set_from([25, 12, 10], |x, y, z| {
+            let inside = (1..24).contains(&x) && (1..11).contains(&y) && (1..9).contains(&z);
+            let wall = x == 12;
+            let gap = (8..10).contains(&y) && (1..8).contains(&z);
+            inside && (!wall || gap)
+        });
+        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis);
+        assert!(s.is_curvilinear());
+        assert_eq!(betti(&s), (1, 0, 0));
+        let pts: Vec<[usize; 3]> = (0..s.cells.len()).filter(|&i| s.cells[i]).map(|i| s.coords(i)).collect();
+        assert!(pts.iter().any(|p| p[0] < 20), "nothing in the left room");
+        assert!(pts.iter().any(|p| p[0] > 30), "nothing in the right room");
+        // The wall voxel x = 12 spans doubled x 24..26: the curve crosses it in the gap.
+        assert!(pts.iter().any(|p| p[0] == 25 && (16..=20).contains(&p[1])), "no crossing in the gap");
+    }
+
+    /// A room with a floating light quad (a cavity of the empty space): the surface around
+    /// it is pierced, leaving a connected curvilinear skeleton.
+    #[test]
+    fn a_floating_light_is_pierced_into_a_curvilinear_skeleton() {
+        let set = set_from([16, 16, 16], |x, y, z| {
+            let room = (1..15).contains(&x) && (1..15).contains(&y) && (1..15).contains(&z);
+            let light = (6..10).contains(&x) && (6..10).contains(&y) && z == 10;
+            room && !light
+        });
+        let x = Complex::from_voxels(&set);
+        assert_eq!(betti(&x), (1, 0, 1), "the light makes a cavity");
+        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis);
+        assert!(s.is_curvilinear(), "{:?}", s.face_counts());
+        assert_eq!(betti(&s).0, 1);
+        assert_eq!(betti(&s).2, 0);
     }
 
     /// A square ring of corridor gives exactly one cycle.
