@@ -2,6 +2,7 @@
 
 mod bench;
 mod compare;
+mod skeleton;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -16,6 +17,7 @@ use skelight::integrator::bpt::Bpt;
 use skelight::integrator::mis::Heuristic;
 use skelight::integrator::{self, RenderOptions};
 use skelight::scene::{self, Scene};
+use skelight_shape::thinning::EdgeConstraint;
 
 #[derive(Parser)]
 #[command(name = "skelight", version, about = "Physically based renderer guided by the shape of empty space")]
@@ -43,6 +45,26 @@ enum Command {
     },
     /// Equal-time comparison of estimators against a reference, with a report.
     Compare(CompareArgs),
+    /// Analyse the empty space: the curvilinear skeleton, its filtered graph, opening-forest
+    /// labels and portals, written to DIR (JSON, PLY line sets, a timing report).
+    Skeleton {
+        /// Scene file. Omit for the embedded default scene.
+        scene: Option<PathBuf>,
+        /// Voxels on the longest side of the scene's box (grown by 10 %).
+        #[arg(long, default_value_t = 128)]
+        resolution: usize,
+        /// Alg. 3's edge constraint: thesis (lifespan > DC + birth − D) or released-code
+        /// (lifespan > DC + birth).
+        #[arg(long, default_value = "thesis", value_parser = parse_constraint)]
+        constraint: EdgeConstraint,
+        #[arg(short, long, default_value = "skeleton")]
+        output: PathBuf,
+        /// Scene parameter substitution, as Mitsuba's -D name=value.
+        #[arg(short = 'D', value_parser = parse_define)]
+        define: Vec<(String, String)>,
+        #[arg(short, long)]
+        quiet: bool,
+    },
     /// Combine independent renders of one scene (weighted by their sample counts).
     Merge {
         parts: Vec<PathBuf>,
@@ -217,6 +239,14 @@ struct RenderArgs {
     /// same random numbers, so the images add up to the full render.
     #[arg(long, value_name = "DIR")]
     debug_strategies: Option<PathBuf>,
+}
+
+fn parse_constraint(s: &str) -> Result<EdgeConstraint, String> {
+    match s {
+        "thesis" => Ok(EdgeConstraint::Thesis),
+        "released-code" => Ok(EdgeConstraint::ReleasedCode),
+        _ => Err(format!("unknown constraint '{s}'; use thesis or released-code")),
+    }
 }
 
 fn parse_heuristic(s: &str) -> Result<Heuristic, String> {
@@ -628,6 +658,11 @@ fn main() {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Render(a) => render(a),
+        Command::Skeleton { scene, resolution, constraint, output, define, quiet } => (|| {
+            let scene = load_scene(scene.as_deref(), &define)?;
+            skeleton::run(&scene, resolution, constraint, &output, quiet)?;
+            Ok(())
+        })(),
         Command::Bench { what } => bench(what),
         Command::Reference(a) => reference(a),
         Command::Compare(a) => compare_cmd(a),

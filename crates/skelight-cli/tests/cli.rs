@@ -104,6 +104,25 @@ fn bpt_strategy_images_add_up_to_the_render() {
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("apply to --integrator bpt"));
 }
 
+/// `skelight skeleton` on the default scene writes the skeletons, portals and a report;
+/// absurd resolutions are refused with a reason.
+#[test]
+fn skeleton_writes_graphs_portals_and_a_report() {
+    let d = tmp("skeleton");
+    let log = run_ok(&["skeleton", "--resolution", "40", "-o", d.to_str().unwrap()]);
+    assert!(log.contains("total") && log.contains("filtered"), "{log}");
+    for f in ["skeleton.json", "skeleton_filtered.json", "skeleton.ply", "skeleton_filtered.ply", "portals.json"] {
+        assert!(d.join(f).exists(), "{f} missing");
+    }
+    let json = std::fs::read_to_string(d.join("skeleton_filtered.json")).unwrap();
+    assert!(json.contains("\"position\"") && json.contains("\"radius\"") && json.contains("\"edges\""));
+    for res in ["0", "100000"] {
+        let out = bin().args(["skeleton", "--resolution", res, "-o", d.to_str().unwrap()]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("error") && !err.contains("panicked"), "{res}: {err}");
+    }
+}
+
 /// Kill a reference render between checkpoints, resume it: the result is identical, bit for
 /// bit, to an uninterrupted render with the same seed.
 #[test]

@@ -9,7 +9,9 @@ pub mod distance;
 pub mod grid;
 pub mod labeling;
 pub mod opening;
+pub mod pipeline;
 pub mod portals;
+pub mod skeleton;
 pub mod thinning;
 pub mod voxelize;
 

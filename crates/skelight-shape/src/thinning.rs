@@ -149,27 +149,49 @@ pub enum EdgeConstraint {
     ReleasedCode,
 }
 
-/// Alg. 3: the curvilinear skeleton of the voxel set `set`. Edges whose lifespan under
-/// unconstrained thinning exceeds the constraint are kept (with their vertices), then the
-/// complex is thinned until no free face is left. Returns the skeleton and the dates.
+/// The curvilinear skeleton of the voxel set `set` (Alg. 3 and §6.2.4). Returns the
+/// skeleton and the dates of the unconstrained thinning of the set.
+///
+/// Faces that the unconstrained thinning never removes have an infinite lifespan; on a
+/// curvilinear object they are its cycles, which no collapse can break, but around a
+/// cavity of the empty space (a floating light, the whole building inside the grid's
+/// margin) they form a closed surface. Keeping those edges would pin the surface in place
+/// once pierced, so the constraint set W takes only edges of finite lifespan. Surface parts
+/// left after thinning are pierced, one square each, and the thinning resumes, until only
+/// curves remain; a surface around k cavities needs k rounds.
 pub fn curvilinear_skeleton(set: &Grid<bool>, constraint: EdgeConstraint) -> (Complex, Dates) {
-    let x = Complex::from_voxels(set);
-    let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
-    par_dir_collapse(&mut x.clone(), None, u32::MAX, Some(&mut dates));
     let distance = l1(set, true);
     let opening = l1_opening(&distance);
+    let mut skeleton = Complex::from_voxels(set);
+    let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
+    par_dir_collapse(&mut skeleton.clone(), None, u32::MAX, Some(&mut dates));
+    let keep = edge_constraint(&skeleton, &dates, &distance, &opening, constraint);
+    par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
+    while pierce_surfaces(&mut skeleton) > 0 {
+        par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
+    }
+    (skeleton, dates)
+}
+
+/// Alg. 3 line 1: the edges of `x` (of finite lifespan, see [`curvilinear_skeleton`]) whose
+/// lifespan exceeds the constraint, with their vertices. `distance` and `opening` are the
+/// L1 distance and opening maps of the voxel set.
+pub fn edge_constraint(
+    x: &Complex,
+    dates: &Dates,
+    distance: &Grid<u32>,
+    opening: &Grid<u32>,
+    constraint: EdgeConstraint,
+) -> Vec<bool> {
     let mut keep = vec![false; x.cells.len()];
     for (e, kept) in keep.iter_mut().enumerate() {
         if !x.cells[e] || x.dim(e) != 1 {
             continue;
         }
-        let Some(lifespan) = dates.lifespan(e) else {
-            *kept = true;
-            continue;
-        };
+        let Some(lifespan) = dates.lifespan(e) else { continue };
         // D and DC of an edge: their largest values over the voxels around it.
         let (mut d, mut dc) = (0i64, 0i64);
-        for v in voxels_around(&x, e) {
+        for v in voxels_around(x, e) {
             let (dv, ov) = (distance.data[v] as i64, opening.data[v] as i64);
             d = d.max(dv);
             dc = dc.max(ov - dv);
@@ -189,15 +211,7 @@ pub fn curvilinear_skeleton(set: &Grid<bool>, constraint: EdgeConstraint) -> (Co
             }
         }
     }
-    let mut skeleton = x;
-    par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
-    // §6.2.4: surface parts (around cavities of the empty space, such as a floating light)
-    // are pierced, one square each, and the thinning resumes, until only curves remain.
-    // A closed surface needs one hole per enclosed cavity; each round makes one per part.
-    while pierce_surfaces(&mut skeleton) > 0 {
-        par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
-    }
-    (skeleton, dates)
+    keep
 }
 
 /// Removes one 2-face from every connected surface part of `x` (squares joined through

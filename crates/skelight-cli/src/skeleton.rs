@@ -1,0 +1,104 @@
+//! `skelight skeleton`: the empty-space analysis of a scene, written as files a person or a
+//! program can read — the skeleton and the filtered skeleton (JSON and PLY line sets), the
+//! opening portals (JSON) and the per-stage timings.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use skelight::scene::Scene;
+use skelight_shape::pipeline::{analyse, Analysis};
+use skelight_shape::skeleton::SkeletonGraph;
+use skelight_shape::thinning::EdgeConstraint;
+
+/// Runs the analysis of `scene` at `resolution` voxels on the longest side and writes its
+/// outputs into `dir`.
+pub fn run(scene: &Scene, resolution: usize, constraint: EdgeConstraint, dir: &Path, quiet: bool) -> Result<Analysis> {
+    let triangles: Vec<[[f64; 3]; 3]> =
+        scene.build_triangles().iter().map(|t| t.v.map(|p| [p.x as f64, p.y as f64, p.z as f64])).collect();
+    let a = analyse(&triangles, resolution, constraint).context("empty-space analysis")?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let write = |name: &str, text: &str| -> Result<()> {
+        let p = dir.join(name);
+        skelight::imageio::write_file_atomically(&p, text.as_bytes())
+            .map_err(anyhow::Error::msg)
+            .with_context(|| format!("writing {}", p.display()))
+    };
+    write("skeleton.json", &graph_json(&a.skeleton))?;
+    write("skeleton_filtered.json", &graph_json(&a.filtered))?;
+    write("skeleton.ply", &graph_ply(&a.skeleton))?;
+    write("skeleton_filtered.ply", &graph_ply(&a.filtered))?;
+    write("portals.json", &portals_json(&a))?;
+    let mut report = String::new();
+    let [w, h, d] = a.spec.dims;
+    let _ = writeln!(report, "grid {w}×{h}×{d}, voxel {:.4}", a.spec.voxel);
+    let total: f64 = a.timings.iter().map(|t| t.1).sum();
+    for (stage, secs) in &a.timings {
+        let _ = writeln!(report, "{stage:<40} {secs:8.3} s");
+    }
+    let _ = writeln!(report, "{:<40} {total:8.3} s", "total");
+    let _ = writeln!(
+        report,
+        "skeleton: {} nodes, {} edges; filtered: {} nodes, {} edges; {} labels, {} portals",
+        a.skeleton.nodes.len(),
+        a.skeleton.edges.len(),
+        a.filtered.nodes.len(),
+        a.filtered.edges.len(),
+        a.labelling.count,
+        a.portals.len()
+    );
+    write("report.txt", &report)?;
+    if !quiet {
+        eprint!("{report}");
+    }
+    Ok(a)
+}
+
+fn graph_json(g: &SkeletonGraph) -> String {
+    let mut s = String::from("{\"nodes\": [");
+    for (i, n) in g.nodes.iter().enumerate() {
+        let sep = if i == 0 { "" } else { "," };
+        let [x, y, z] = n.position;
+        let _ = write!(s, "{sep}\n  {{\"position\": [{x}, {y}, {z}], \"radius\": {}}}", n.radius);
+    }
+    s += "\n], \"edges\": [";
+    for (i, [a, b]) in g.edges.iter().enumerate() {
+        let sep = if i == 0 { "" } else { ", " };
+        let _ = write!(s, "{sep}[{a}, {b}]");
+    }
+    s += "]}\n";
+    s
+}
+
+/// ASCII PLY with vertices and edges (a line set most viewers show).
+fn graph_ply(g: &SkeletonGraph) -> String {
+    let mut s = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float radius\nelement edge {}\nproperty int vertex1\nproperty int vertex2\nend_header\n",
+        g.nodes.len(),
+        g.edges.len()
+    );
+    for n in &g.nodes {
+        let [x, y, z] = n.position;
+        let _ = writeln!(s, "{x} {y} {z} {}", n.radius);
+    }
+    for [a, b] in &g.edges {
+        let _ = writeln!(s, "{a} {b}");
+    }
+    s
+}
+
+fn portals_json(a: &Analysis) -> String {
+    let mut s = String::from("{\"portals\": [");
+    for (i, p) in a.portals.iter().enumerate() {
+        let sep = if i == 0 { "" } else { "," };
+        let [cx, cy, cz] = p.centroid;
+        let [nx, ny, nz] = p.normal;
+        let _ = write!(
+            s,
+            "{sep}\n  {{\"regions\": [{}, {}], \"faces\": {}, \"area\": {}, \"centroid\": [{cx}, {cy}, {cz}], \"normal\": [{nx}, {ny}, {nz}]}}",
+            p.from, p.to, p.faces, p.area
+        );
+    }
+    s += "\n]}\n";
+    s
+}
