@@ -407,12 +407,7 @@ fn img_tag(img: &Image, alt: &str) -> Result<String> {
 /// Writes every output of the study into `dir`.
 pub fn write_report(study: &Study, reference: &Image, dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let write = |name: &str, text: &str| -> Result<()> {
-        let p = dir.join(name);
-        skelight::imageio::write_file_atomically(&p, text.as_bytes())
-            .map_err(anyhow::Error::msg)
-            .with_context(|| format!("writing {}", p.display()))
-    };
+    let write = |name: &str, text: &str| crate::write_text(&dir.join(name), text);
     write("errors.csv", &csv(&study.series))?;
     write("errors.json", &json(study))?;
     let svg = plot_svg(&study.series);

@@ -480,6 +480,13 @@ impl Job {
     }
 }
 
+/// Writes a text file through a temporary name, with an error naming the file.
+pub(crate) fn write_text(path: &Path, text: &str) -> Result<()> {
+    skelight::imageio::write_file_atomically(path, text.as_bytes())
+        .map_err(anyhow::Error::msg)
+        .with_context(|| format!("writing {}", path.display()))
+}
+
 /// Writes OUT.exr (with its sample count) and OUT.png; returns the image.
 fn write_outputs(film: &skelight::film::Film, spp: u32, output: &Path, exposure: f32) -> Result<Image> {
     let img = film.image();
@@ -536,10 +543,7 @@ fn render(args: RenderArgs) -> Result<()> {
                 csv += &format!("{s},{t},{},{},{},{}\n", vertices - 1, m.r, m.g, m.b);
             }
         }
-        let csv_path = dir.join("strategies.csv");
-        skelight::imageio::write_file_atomically(&csv_path, csv.as_bytes())
-            .map_err(anyhow::Error::msg)
-            .with_context(|| format!("writing {}", csv_path.display()))?;
+        write_text(&dir.join("strategies.csv"), &csv)?;
         job.integrator = bpt(None);
     }
     let r = job.run(None, args.quiet, |_, _| Ok(()))?;

@@ -18,12 +18,7 @@ pub fn run(scene: &Scene, resolution: usize, constraint: EdgeConstraint, dir: &P
         scene.build_triangles().iter().map(|t| t.v.map(|p| [p.x as f64, p.y as f64, p.z as f64])).collect();
     let a = analyse(&triangles, resolution, constraint).context("empty-space analysis")?;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let write = |name: &str, text: &str| -> Result<()> {
-        let p = dir.join(name);
-        skelight::imageio::write_file_atomically(&p, text.as_bytes())
-            .map_err(anyhow::Error::msg)
-            .with_context(|| format!("writing {}", p.display()))
-    };
+    let write = |name: &str, text: &str| crate::write_text(&dir.join(name), text);
     write("skeleton.json", &graph_json(&a.skeleton))?;
     write("skeleton_filtered.json", &graph_json(&a.filtered))?;
     write("skeleton.ply", &graph_ply(&a.skeleton))?;
