@@ -13,7 +13,7 @@ fi
 work=$(mktemp -d)
 sed "s/\[SPP\]/[$spp]/" bench/rs_pbrt/c01_cbox_area.pbrt > "$work/c01.pbrt"
 start=$(date +%s.%N)
-(cd "$work" && "$OLDPWD/$root/bin/rs_pbrt" -t "$threads" -i c01.pbrt > rs_pbrt.log 2>&1)
+(cd "$work" && "$OLDPWD/$root/bin/rs_pbrt" -t "$threads" -i bdpt -p c01.pbrt > rs_pbrt.log 2>&1)
 end=$(date +%s.%N)
 secs=$(awk "BEGIN { print $end - $start }")
 rs=$(awk "BEGIN { print 128 * 128 * $spp / $secs / 1e6 }")
