@@ -139,6 +139,30 @@ impl Complex {
         count
     }
 
+    /// Linear indices, in the voxel grid, of the voxels (3-faces) that contain face `i`.
+    pub fn voxels_around(&self, i: usize) -> Vec<usize> {
+        let p = self.coords(i);
+        let [w, h, d] = self.dims.map(|n| (n - 1) / 2);
+        // Along each axis, an odd coordinate 2a+1 lies in voxel a; an even one 2a in a−1 and a.
+        let options = |c: usize, n: usize| -> Vec<usize> {
+            if c & 1 == 1 {
+                vec![c / 2]
+            } else {
+                [c / 2, c / 2 + 1].into_iter().filter(|&v| v >= 1 && v <= n).map(|v| v - 1).collect()
+            }
+        };
+        let (xs, ys, zs) = (options(p[0], w), options(p[1], h), options(p[2], d));
+        let mut out = Vec::new();
+        for &z in &zs {
+            for &y in &ys {
+                for &vx in &xs {
+                    out.push((z * h + y) * w + vx);
+                }
+            }
+        }
+        out
+    }
+
     /// Whether the complex has no face of dimension 2 or more.
     pub fn is_curvilinear(&self) -> bool {
         let n = self.face_counts();

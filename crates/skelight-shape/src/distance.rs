@@ -161,18 +161,7 @@ fn lower_envelope(f: &[f64]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::GridSpec;
-
-    fn random_set(dims: [usize; 3], seed: u64, density: f64) -> Grid<bool> {
-        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims };
-        let mut s = seed;
-        let mut g = Grid::new(spec, true);
-        for v in g.data.iter_mut() {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            *v = ((s >> 33) as f64 / (1u64 << 31) as f64) > density;
-        }
-        g
-    }
+    use crate::testing::random_set;
 
     /// Brute force over every outside voxel (and the virtual border ring when it counts).
     fn brute(set: &Grid<bool>, border: bool, metric: impl Fn([i64; 3]) -> u64) -> Vec<u64> {

@@ -64,20 +64,15 @@ pub fn opening_forest_labelling(o: &Opening) -> Labelling {
 mod tests {
     use super::*;
     use crate::distance::chessboard;
-    use crate::grid::GridSpec;
     use crate::opening::opening;
+    use crate::testing::random_set;
 
     /// Every voxel of the set is labelled, its label's region contains a root, and the
     /// regions are 6-connected.
     #[test]
     fn labels_cover_the_set_with_connected_regions() {
-        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims: [12, 10, 8] };
-        let mut set = Grid::new(spec, true);
-        let mut s = 99u64;
-        for v in set.data.iter_mut() {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            *v = (s >> 60) > 2;
-        }
+        let set = random_set([12, 10, 8], 99, 3.0 / 16.0);
+        let spec = set.spec;
         let o = opening(&chessboard(&set, true));
         let l = opening_forest_labelling(&o);
         for label in 1..=l.count {

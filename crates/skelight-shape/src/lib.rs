@@ -12,6 +12,8 @@ pub mod opening;
 pub mod pipeline;
 pub mod portals;
 pub mod skeleton;
+#[cfg(test)]
+mod testing;
 pub mod thinning;
 pub mod voxelize;
 

@@ -157,17 +157,7 @@ mod tests {
     use super::*;
     use crate::distance::chessboard;
     use crate::grid::GridSpec;
-
-    fn random_set(dims: [usize; 3], seed: u64, density: f64) -> Grid<bool> {
-        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims };
-        let mut g = Grid::new(spec, true);
-        let mut s = seed;
-        for v in g.data.iter_mut() {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            *v = ((s >> 33) as f64 / (1u64 << 31) as f64) > density;
-        }
-        g
-    }
+    use crate::testing::{random_set, set_from};
 
     fn coords(spec: &GridSpec, i: usize) -> [i64; 3] {
         let [nx, ny, _] = spec.dims;
@@ -244,22 +234,12 @@ mod tests {
     /// the room's ball (radius 5, its centre the room's centre), the corridor's to 2.
     #[test]
     fn a_room_opens_wider_than_its_corridor() {
-        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims: [20, 11, 11] };
-        let mut set = Grid::new(spec, false);
-        for z in 1..10 {
-            for y in 1..10 {
-                for x in 1..10 {
-                    set.set(x, y, z, true);
-                }
-            }
-        }
-        for x in 10..19 {
-            for y in 4..7 {
-                for z in 4..7 {
-                    set.set(x, y, z, true);
-                }
-            }
-        }
+        let set = set_from([20, 11, 11], 1.0, |x, y, z| {
+            let room = (1..10).contains(&x) && (1..10).contains(&y) && (1..10).contains(&z);
+            let corridor = (10..19).contains(&x) && (4..7).contains(&y) && (4..7).contains(&z);
+            room || corridor
+        });
+        let spec = set.spec;
         let o = opening(&chessboard(&set, true));
         assert_eq!(*o.radius.get(1, 1, 1), 5);
         assert_eq!(*o.centre.get(1, 1, 1) as usize, spec.index(5, 5, 5));

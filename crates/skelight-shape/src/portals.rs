@@ -82,26 +82,19 @@ pub fn portals(l: &Labelling) -> Vec<Portal> {
 mod tests {
     use super::*;
     use crate::distance::chessboard;
-    use crate::grid::{Grid, GridSpec};
     use crate::labeling::opening_forest_labelling;
     use crate::opening::opening;
+    use crate::testing::set_from;
 
     /// Two 7-wide rooms joined by a 1×3 gap in a wall: each room is one region and the
     /// only portal between them lies in the gap (or beside it), facing along x.
     #[test]
     fn two_rooms_meet_at_one_portal_in_the_door() {
-        let spec = GridSpec { origin: [0.0; 3], voxel: 0.5, dims: [17, 9, 9] };
-        let mut set = Grid::new(spec, false);
-        for z in 1..8 {
-            for y in 1..8 {
-                for x in 1..16 {
-                    // Wall at x = 8 with a gap at y = 4, z = 3..6.
-                    if x != 8 || (y == 4 && (3..6).contains(&z)) {
-                        set.set(x, y, z, true);
-                    }
-                }
-            }
-        }
+        let set = set_from([17, 9, 9], 0.5, |x, y, z| {
+            let inside = (1..16).contains(&x) && (1..8).contains(&y) && (1..8).contains(&z);
+            // Wall at x = 8 with a gap at y = 4, z = 3..6.
+            inside && (x != 8 || (y == 4 && (3..6).contains(&z)))
+        });
         let o = opening(&chessboard(&set, true));
         let l = opening_forest_labelling(&o);
         let (left, right) = (*l.labels.get(4, 4, 4), *l.labels.get(12, 4, 4));

@@ -36,31 +36,17 @@ impl SkeletonGraph {
             if !x.cells[i] || x.dim(i) != 0 {
                 continue;
             }
-            let p = x.coords(i);
-            let corner = [p[0] / 2, p[1] / 2, p[2] / 2];
-            // The empty voxel around the corner farthest from the scene.
-            let mut best: Option<(u64, usize)> = None;
-            for dz in 0..2 {
-                for dy in 0..2 {
-                    for dx in 0..2 {
-                        let v = [corner[0] + dx, corner[1] + dy, corner[2] + dz];
-                        if v[0] == 0 || v[1] == 0 || v[2] == 0 {
-                            continue;
-                        }
-                        let v = [v[0] - 1, v[1] - 1, v[2] - 1];
-                        if (0..3).any(|a| v[a] >= spec.dims[a]) {
-                            continue;
-                        }
-                        let vi = spec.index(v[0], v[1], v[2]);
-                        if empty.data[vi] && best.is_none_or(|b| edt.data[vi] > b.0) {
-                            best = Some((edt.data[vi], vi));
-                        }
-                    }
-                }
-            }
+            // The empty voxel around the vertex farthest from the scene.
+            let best = x
+                .voxels_around(i)
+                .into_iter()
+                .filter(|&v| empty.data[v])
+                .map(|v| (edt.data[v], v))
+                .reduce(|a, b| if b.0 > a.0 { b } else { a });
             let Some((d2, voxel)) = best else { continue };
             *node = graph.nodes.len() as u32;
-            let position = [0, 1, 2].map(|a| spec.origin[a] + corner[a] as f64 * spec.voxel);
+            let p = x.coords(i);
+            let position = [0, 1, 2].map(|a| spec.origin[a] + (p[a] / 2) as f64 * spec.voxel);
             graph.nodes.push(Node { position, voxel, radius: (d2 as f64).sqrt() * spec.voxel });
         }
         for e in 0..x.cells.len() {
@@ -194,25 +180,12 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
 mod tests {
     use super::*;
     use crate::distance::euclidean_squared;
+    use crate::testing::two_rooms_and_a_gap;
     use crate::thinning::{curvilinear_skeleton, EdgeConstraint};
-
-    fn two_rooms() -> Grid<bool> {
-        let spec = GridSpec { origin: [0.0; 3], voxel: 0.5, dims: [25, 12, 10] };
-        let mut g = Grid::new(spec, false);
-        for z in 1..9 {
-            for y in 1..11 {
-                for x in 1..24 {
-                    let gap = (8..10).contains(&y) && (1..8).contains(&z);
-                    g.set(x, y, z, x != 12 || gap);
-                }
-            }
-        }
-        g
-    }
 
     #[test]
     fn graph_filter_and_mapping_of_two_rooms() {
-        let empty = two_rooms();
+        let empty = two_rooms_and_a_gap(0.5);
         let (x, _) = curvilinear_skeleton(&empty, EdgeConstraint::Thesis);
         let edt = euclidean_squared(&empty, true);
         let g = SkeletonGraph::from_complex(&x, &empty.spec, &empty, &edt);

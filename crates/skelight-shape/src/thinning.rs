@@ -191,7 +191,7 @@ pub fn edge_constraint(
         let Some(lifespan) = dates.lifespan(e) else { continue };
         // D and DC of an edge: their largest values over the voxels around it.
         let (mut d, mut dc) = (0i64, 0i64);
-        for v in voxels_around(x, e) {
+        for v in x.voxels_around(e) {
             let (dv, ov) = (distance.data[v] as i64, opening.data[v] as i64);
             d = d.max(dv);
             dc = dc.max(ov - dv);
@@ -246,47 +246,11 @@ pub fn pierce_surfaces(x: &mut Complex) -> usize {
     pierced.len()
 }
 
-/// Voxel indices (of the set's grid) of the 3-faces of `x`'s grid that contain face `i`.
-fn voxels_around(x: &Complex, i: usize) -> Vec<usize> {
-    let p = x.coords(i);
-    let [w, h, d] = x.dims.map(|n| (n - 1) / 2);
-    // Along each axis, an odd coordinate 2a+1 lies in voxel a; an even one 2a in a−1 and a.
-    let options = |c: usize, n: usize| -> Vec<usize> {
-        if c & 1 == 1 {
-            vec![c / 2]
-        } else {
-            [c / 2, c / 2 + 1].into_iter().filter(|&v| v >= 1 && v <= n).map(|v| v - 1).collect()
-        }
-    };
-    let (xs, ys, zs) = (options(p[0], w), options(p[1], h), options(p[2], d));
-    let mut out = Vec::new();
-    for &z in &zs {
-        for &y in &ys {
-            for &vx in &xs {
-                out.push((z * h + y) * w + vx);
-            }
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::GridSpec;
+    use crate::testing::{set_from, two_rooms_and_a_gap, Lcg};
     use std::collections::VecDeque;
-
-    fn set_from(dims: [usize; 3], mut inside: impl FnMut(usize, usize, usize) -> bool) -> Grid<bool> {
-        let mut g = Grid::new(GridSpec { origin: [0.0; 3], voxel: 1.0, dims }, false);
-        for z in 0..dims[2] {
-            for y in 0..dims[1] {
-                for x in 0..dims[0] {
-                    g.set(x, y, z, inside(x, y, z));
-                }
-            }
-        }
-        g
-    }
 
     /// Components of the complement of the complex (open cells not in it, joined through
     /// faces), the outside of the grid counting as one with the border cells.
@@ -335,20 +299,21 @@ mod tests {
         (b0, b0 + b2 - x.euler_characteristic(), b2)
     }
 
-    fn random_set(dims: [usize; 3], seed: u64, density: f64) -> Grid<bool> {
-        let mut s = seed;
-        set_from(dims, |x, y, z| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    /// A random object with an empty border (so the grid's outside is one region).
+    fn random_object(dims: [usize; 3], seed: u64, density: f64) -> Grid<bool> {
+        let mut r = Lcg(seed);
+        set_from(dims, 1.0, |x, y, z| {
             let interior =
                 (1..dims[0] - 1).contains(&x) && (1..dims[1] - 1).contains(&y) && (1..dims[2] - 1).contains(&z);
-            interior && ((s >> 33) as f64 / (1u64 << 31) as f64) < density
+            let u = r.next();
+            interior && u < density
         })
     }
 
     #[test]
     fn every_layer_keeps_components_tunnels_and_cavities() {
         for seed in 0..12 {
-            let set = random_set([8, 7, 6], seed, 0.75);
+            let set = random_object([8, 7, 6], seed, 0.75);
             let mut x = Complex::from_voxels(&set);
             let before = betti(&x);
             loop {
@@ -367,7 +332,7 @@ mod tests {
 
     #[test]
     fn dates_follow_their_definitions() {
-        let set = random_set([7, 7, 7], 3, 0.8);
+        let set = random_object([7, 7, 7], 3, 0.8);
         let x = Complex::from_voxels(&set);
         let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
         par_dir_collapse(&mut x.clone(), None, u32::MAX, Some(&mut dates));
@@ -389,7 +354,8 @@ mod tests {
     /// A straight 5×5 corridor gives one line along its axis.
     #[test]
     fn a_straight_corridor_gives_its_axis() {
-        let set = set_from([24, 7, 7], |x, y, z| (1..23).contains(&x) && (1..6).contains(&y) && (1..6).contains(&z));
+        let set =
+            set_from([24, 7, 7], 1.0, |x, y, z| (1..23).contains(&x) && (1..6).contains(&y) && (1..6).contains(&z));
         for constraint in [EdgeConstraint::Thesis, EdgeConstraint::ReleasedCode] {
             let (s, _) = curvilinear_skeleton(&set, constraint);
             assert!(s.is_curvilinear(), "{constraint:?}: {:?}", s.face_counts());
@@ -409,7 +375,7 @@ mod tests {
     /// An L-shaped corridor gives one curve reaching into both arms.
     #[test]
     fn an_l_corridor_gives_an_l() {
-        let set = set_from([20, 20, 7], |x, y, z| {
+        let set = set_from([20, 20, 7], 1.0, |x, y, z| {
             let z_ok = (1..6).contains(&z);
             let arm_x = (1..19).contains(&x) && (1..6).contains(&y);
             let arm_y = (1..6).contains(&x) && (1..19).contains(&y);
@@ -426,12 +392,7 @@ mod tests {
     /// Two rooms joined by a narrow gap in a wall: one connected curve through the gap.
     #[test]
     fn two_rooms_and_an_ajar_door_give_two_parts_joined_through_the_gap() {
-        let set = set_from([25, 12, 10], |x, y, z| {
-            let inside = (1..24).contains(&x) && (1..11).contains(&y) && (1..9).contains(&z);
-            let wall = x == 12;
-            let gap = (8..10).contains(&y) && (1..8).contains(&z);
-            inside && (!wall || gap)
-        });
+        let set = two_rooms_and_a_gap(1.0);
         let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis);
         assert!(s.is_curvilinear());
         assert_eq!(betti(&s), (1, 0, 0));
@@ -446,7 +407,7 @@ mod tests {
     /// it is pierced, leaving a connected curvilinear skeleton.
     #[test]
     fn a_floating_light_is_pierced_into_a_curvilinear_skeleton() {
-        let set = set_from([16, 16, 16], |x, y, z| {
+        let set = set_from([16, 16, 16], 1.0, |x, y, z| {
             let room = (1..15).contains(&x) && (1..15).contains(&y) && (1..15).contains(&z);
             let light = (6..10).contains(&x) && (6..10).contains(&y) && z == 10;
             room && !light
@@ -462,7 +423,7 @@ mod tests {
     /// A square ring of corridor gives exactly one cycle.
     #[test]
     fn a_ring_corridor_gives_one_cycle() {
-        let set = set_from([20, 20, 6], |x, y, z| {
+        let set = set_from([20, 20, 6], 1.0, |x, y, z| {
             let outer = (1..19).contains(&x) && (1..19).contains(&y) && (1..5).contains(&z);
             let hole = (6..14).contains(&x) && (6..14).contains(&y);
             outer && !hole

@@ -264,12 +264,26 @@ impl LightPaths {
             .collect();
         let mut all = LightPaths::default();
         all.vertices.reserve(chunks.iter().map(|c| c.vertices.len()).sum());
-        for c in &chunks {
-            for i in 0..c.len() {
-                all.push(c.path(i), c.lens_hits(i));
-            }
+        for c in chunks {
+            all.append(c);
         }
         all
+    }
+
+    /// Moves `other`'s paths after this buffer's, in one bulk copy.
+    fn append(&mut self, other: LightPaths) {
+        if other.is_empty() {
+            return;
+        }
+        if self.starts.is_empty() {
+            self.starts.push(0);
+            self.hit_starts.push(0);
+        }
+        let (v0, h0) = (self.vertices.len() as u32, self.lens_hits.len() as u32);
+        self.vertices.extend(other.vertices);
+        self.lens_hits.extend(other.lens_hits);
+        self.starts.extend(other.starts[1..].iter().map(|s| s + v0));
+        self.hit_starts.extend(other.hit_starts[1..].iter().map(|s| s + h0));
     }
 
     fn push(&mut self, path: &[Vertex], hits: &[LensHit]) {
