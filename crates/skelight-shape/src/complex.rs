@@ -67,24 +67,36 @@ impl Complex {
 
     /// Faces of dimension one more that contain face `i` (inside the grid), with the axis
     /// and sign of the step: `(index, axis, +1 / −1)`.
-    pub fn cofaces(&self, i: usize) -> impl Iterator<Item = (usize, usize, i8)> + '_ {
+    pub fn cofaces(&self, i: usize) -> Steps {
         self.steps(i, 0)
     }
 
     /// Faces of dimension one less contained in face `i`, as `(index, axis, sign)`.
-    pub fn facets(&self, i: usize) -> impl Iterator<Item = (usize, usize, i8)> + '_ {
+    pub fn facets(&self, i: usize) -> Steps {
         self.steps(i, 1)
     }
 
-    /// Neighbours at ±1 along the axes where face `i`'s coordinate has the given parity.
-    fn steps(&self, i: usize, parity: usize) -> impl Iterator<Item = (usize, usize, i8)> + '_ {
+    /// Neighbours at ±1 along the axes where face `i`'s coordinate has the given parity,
+    /// gathered in a fixed array (this sits in the innermost loop of the thinning).
+    #[inline]
+    fn steps(&self, i: usize, parity: usize) -> Steps {
         let p = self.coords(i);
         let stride = [1, self.dims[0], self.dims[0] * self.dims[1]];
-        (0..3).filter(move |&a| p[a] & 1 == parity).flat_map(move |a| {
-            let down = (p[a] > 0).then(|| (i - stride[a], a, -1i8));
-            let up = (p[a] + 1 < self.dims[a]).then(|| (i + stride[a], a, 1i8));
-            down.into_iter().chain(up)
-        })
+        let mut out = Steps { items: [(0, 0, 0); 6], len: 0, next: 0 };
+        for a in 0..3 {
+            if p[a] & 1 != parity {
+                continue;
+            }
+            if p[a] > 0 {
+                out.items[out.len] = (i - stride[a], a, -1);
+                out.len += 1;
+            }
+            if p[a] + 1 < self.dims[a] {
+                out.items[out.len] = (i + stride[a], a, 1);
+                out.len += 1;
+            }
+        }
+        out
     }
 
     /// Number of faces of the complex that contain face `i` and have one dimension more.
@@ -167,6 +179,24 @@ impl Complex {
     pub fn is_curvilinear(&self) -> bool {
         let n = self.face_counts();
         n[2] == 0 && n[3] == 0
+    }
+}
+
+/// Up to six neighbouring faces `(index, axis, sign)` of a face, one step away in the
+/// doubled grid.
+pub struct Steps {
+    items: [(usize, usize, i8); 6],
+    len: usize,
+    next: usize,
+}
+
+impl Iterator for Steps {
+    type Item = (usize, usize, i8);
+    #[inline]
+    fn next(&mut self) -> Option<Self::Item> {
+        let item = self.items[..self.len].get(self.next).copied();
+        self.next += 1;
+        item
     }
 }
 

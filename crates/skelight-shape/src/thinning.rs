@@ -13,6 +13,7 @@ use crate::complex::Complex;
 use crate::distance::l1;
 use crate::grid::Grid;
 use crate::opening::l1_opening;
+use rayon::prelude::*;
 
 /// A date that never came (a face never removed).
 pub const NEVER: u32 = u32::MAX;
@@ -33,84 +34,123 @@ impl Dates {
 /// Alg. 2: removes up to `layers` layers of free pairs from `x`, never removing a free face
 /// in `keep` (a closed set of faces). Records dates in `dates` if given. Returns the number
 /// of layers removed.
-pub fn par_dir_collapse(x: &mut Complex, keep: Option<&[bool]>, layers: u32, mut dates: Option<&mut Dates>) -> u32 {
+pub fn par_dir_collapse(x: &mut Complex, keep: Option<&[bool]>, layers: u32, dates: Option<&mut Dates>) -> u32 {
+    collapse_from(x, keep, layers, dates, None)
+}
+
+/// Sub-steps of a layer in Alg. 2's order: direction (axis), orientation, then dimension
+/// of the larger face from 3 down to 1.
+const SUB_STEPS: usize = 18;
+
+fn sub_step(axis: usize, sign: i8, dim: usize) -> usize {
+    (axis * 2 + usize::from(sign < 0)) * 3 + (3 - dim)
+}
+
+/// Alg. 2 starting from `candidates`, the only faces that may be free (every face whose
+/// cofaces changed since the complex was last without free pairs), or from every free
+/// face if `None`.
+///
+/// The free pairs of a layer are fixed when it starts: the border L is made of their faces,
+/// a face f paired with its facet g is maximal (so never the smaller face of a pair), and a
+/// face of L that was not free at the start is such an f. So within a layer a pair (f, g)
+/// is removed in its own sub-step if both faces are still there, and no pair appears later
+/// in the layer. Pairs of one sub-step never share a face, so their order does not matter.
+fn collapse_from(
+    x: &mut Complex,
+    keep: Option<&[bool]>,
+    layers: u32,
+    mut dates: Option<&mut Dates>,
+    candidates: Option<Vec<usize>>,
+) -> u32 {
     let n = x.cells.len();
-    let kept = |i: usize| keep.is_some_and(|k| k[i]);
+    let cx = &*x;
+    // One byte per face, so each face costs one memory access: whether it is in the
+    // complex, kept, queued for the next layer, and how many of its cofaces remain.
+    let mut state: Vec<u8> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if !cx.cells[i] {
+                return 0;
+            }
+            let kept = if keep.is_some_and(|k| k[i]) { KEPT } else { 0 };
+            ALIVE | kept | cx.coface_count(i) as u8
+        })
+        .collect();
     if let Some(d) = dates.as_deref_mut() {
-        d.birth = (0..n).map(|i| if x.cells[i] && x.coface_count(i) == 0 { 0 } else { NEVER }).collect();
+        d.birth = state.par_iter().map(|&s| if s & (ALIVE | COFACES) == ALIVE { 0 } else { NEVER }).collect();
         d.death = vec![NEVER; n];
     }
-    let mut candidates: Vec<usize> = (0..n).filter(|&i| x.cells[i] && !kept(i)).collect();
-    let mut in_border = vec![false; n];
-    let mut queued = vec![false; n];
-    let mut border = Vec::new();
+    let mut candidates = candidates.unwrap_or_else(|| {
+        (0..n).into_par_iter().filter(|&i| state[i] & (ALIVE | KEPT | COFACES) == ALIVE | 1).collect()
+    });
+    let mut steps: Vec<Vec<(usize, usize)>> = vec![Vec::new(); SUB_STEPS];
     let mut layer = 0;
     while layer < layers {
-        // The border L: every face of a free pair, at the start of the layer.
-        border.clear();
-        let mut free = Vec::new();
-        for &g in &candidates {
-            if let Some((f, _, _)) = free_pair(x, g, &kept) {
-                free.push(g);
-                for face in [g, f] {
-                    if !in_border[face] {
-                        in_border[face] = true;
-                        border.push(face);
-                    }
-                }
+        let pairs: Vec<(usize, usize, usize)> = {
+            let find = |&g: &usize| {
+                let (f, step) = free_pair(cx, &state, g)?;
+                Some((f, g, step))
+            };
+            if candidates.len() > 1 << 14 {
+                candidates.par_iter().filter_map(find).collect()
+            } else {
+                candidates.iter().filter_map(find).collect()
             }
-        }
-        if free.is_empty() {
+        };
+        if pairs.is_empty() {
             break;
         }
         layer += 1;
-        let mut touched = Vec::new();
-        for axis in 0..3 {
-            for orientation in [0u8, 1] {
-                for dim in (1..=3).rev() {
-                    let pairs: Vec<(usize, usize)> = border
-                        .iter()
-                        .filter_map(|&g| {
-                            let (f, a, sign) = free_pair(x, g, &kept)?;
-                            // g = f ∩ (f + v): v = −e_a when f lies above g (sign +1).
-                            let o = u8::from(sign < 0);
-                            (a == axis && o == orientation && x.dim(f) == dim && in_border[f]).then_some((f, g))
-                        })
-                        .collect();
-                    for (f, g) in pairs {
-                        x.cells[f] = false;
-                        x.cells[g] = false;
-                        if let Some(d) = dates.as_deref_mut() {
-                            d.death[f] = layer;
-                            d.death[g] = layer;
+        for &(f, g, step) in &pairs {
+            steps[step].push((f, g));
+        }
+        candidates.clear();
+        for step in &mut steps {
+            for (f, g) in step.drain(..) {
+                if state[f] & state[g] & ALIVE == 0 {
+                    continue;
+                }
+                state[f] &= !ALIVE;
+                state[g] &= !ALIVE;
+                if let Some(d) = dates.as_deref_mut() {
+                    d.death[f] = layer;
+                    d.death[g] = layer;
+                }
+                for (t, _, _) in cx.facets(f).chain(cx.facets(g)) {
+                    // t lost a coface: it may be maximal now (born), or free.
+                    state[t] -= 1;
+                    let s = state[t];
+                    if s & ALIVE == 0 {
+                        continue;
+                    }
+                    match s & COFACES {
+                        0 => {
+                            if let Some(d) = dates.as_deref_mut() {
+                                d.birth[t] = d.birth[t].min(layer);
+                            }
                         }
-                        touched.extend(x.facets(f).map(|t| t.0).chain(x.facets(g).map(|t| t.0)));
+                        1 if s & (KEPT | QUEUED) == 0 => {
+                            state[t] |= QUEUED;
+                            candidates.push(t);
+                        }
+                        _ => {}
                     }
                 }
             }
         }
-        for &i in &border {
-            in_border[i] = false;
-        }
-        if let Some(d) = dates.as_deref_mut() {
-            for &i in &touched {
-                if x.cells[i] && d.birth[i] == NEVER && x.coface_count(i) == 0 {
-                    d.birth[i] = layer;
-                }
-            }
-        }
-        // Next layer: faces left free, and the faces around what was removed.
-        candidates.clear();
-        for i in free.into_iter().chain(touched) {
-            if x.cells[i] && !kept(i) && !queued[i] {
-                queued[i] = true;
-                candidates.push(i);
+        // Pairs whose larger face went with another facet are not free any more; the
+        // others stay free for the next layer.
+        for (_, g, _) in pairs {
+            if state[g] & (ALIVE | COFACES | QUEUED) == ALIVE | 1 {
+                state[g] |= QUEUED;
+                candidates.push(g);
             }
         }
         for &i in &candidates {
-            queued[i] = false;
+            state[i] &= !QUEUED;
         }
     }
+    x.cells.par_iter_mut().zip(&state).for_each(|(c, &s)| *c = s & ALIVE != 0);
     if let Some(d) = dates {
         // A face removed before it became a facet is born when it dies (lifespan 0).
         for i in 0..n {
@@ -122,22 +162,21 @@ pub fn par_dir_collapse(x: &mut Complex, keep: Option<&[bool]>, layers: u32, mut
     layer
 }
 
-/// The face `f` forming a free pair with `g` (g's only coface in `x`), with the axis and
-/// sign of the step from g to f; `None` if g is not free or is kept.
-fn free_pair(x: &Complex, g: usize, kept: &impl Fn(usize) -> bool) -> Option<(usize, usize, i8)> {
-    if !x.cells[g] || kept(g) {
+/// Bits of the per-face state byte of [`collapse_from`]: the count of cofaces left (0–6) in
+/// the low bits, then flags.
+const COFACES: u8 = 0b111;
+const ALIVE: u8 = 1 << 3;
+const KEPT: u8 = 1 << 4;
+const QUEUED: u8 = 1 << 5;
+
+/// The face `f` forming a free pair with `g` (g in the complex, not kept, with exactly one
+/// coface left) and the pair's sub-step; `None` if g is not free.
+fn free_pair(x: &Complex, state: &[u8], g: usize) -> Option<(usize, usize)> {
+    if state[g] & (ALIVE | KEPT | COFACES) != ALIVE | 1 {
         return None;
     }
-    let mut found = None;
-    for c in x.cofaces(g) {
-        if x.cells[c.0] {
-            if found.is_some() {
-                return None;
-            }
-            found = Some(c);
-        }
-    }
-    found
+    let (f, axis, sign) = x.cofaces(g).find(|&(f, _, _)| state[f] & ALIVE != 0)?;
+    Some((f, sub_step(axis, sign, x.dim(f))))
 }
 
 /// Which inequality selects the edges kept by Alg. 3.
@@ -167,8 +206,13 @@ pub fn curvilinear_skeleton(set: &Grid<bool>, constraint: EdgeConstraint) -> (Co
     par_dir_collapse(&mut skeleton.clone(), None, u32::MAX, Some(&mut dates));
     let keep = edge_constraint(&skeleton, &dates, &distance, &opening, constraint);
     par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
-    while pierce_surfaces(&mut skeleton) > 0 {
-        par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
+    loop {
+        let pierced = pierce_surfaces(&mut skeleton);
+        if pierced.is_empty() {
+            break;
+        }
+        let around: Vec<usize> = pierced.iter().flat_map(|&sq| skeleton.facets(sq).map(|t| t.0)).collect();
+        collapse_from(&mut skeleton, Some(&keep), u32::MAX, None, Some(around));
     }
     (skeleton, dates)
 }
@@ -184,11 +228,11 @@ pub fn edge_constraint(
     constraint: EdgeConstraint,
 ) -> Vec<bool> {
     let mut keep = vec![false; x.cells.len()];
-    for (e, kept) in keep.iter_mut().enumerate() {
+    keep.par_iter_mut().enumerate().for_each(|(e, kept)| {
         if !x.cells[e] || x.dim(e) != 1 {
-            continue;
+            return;
         }
-        let Some(lifespan) = dates.lifespan(e) else { continue };
+        let Some(lifespan) = dates.lifespan(e) else { return };
         // D and DC of an edge: their largest values over the voxels around it.
         let (mut d, mut dc) = (0i64, 0i64);
         for v in x.voxels_around(e) {
@@ -202,7 +246,7 @@ pub fn edge_constraint(
             EdgeConstraint::ReleasedCode => dc + birth,
         };
         *kept = lifespan as i64 > bound;
-    }
+    });
     // W must be a complex: keep the kept edges' vertices too.
     for e in 0..x.cells.len() {
         if keep[e] && x.dim(e) == 1 {
@@ -215,9 +259,9 @@ pub fn edge_constraint(
 }
 
 /// Removes one 2-face from every connected surface part of `x` (squares joined through
-/// shared edges): the square with the lowest index, a deterministic choice. Returns how
-/// many were removed. Breaks topology on purpose: a cavity becomes reachable.
-pub fn pierce_surfaces(x: &mut Complex) -> usize {
+/// shared edges): the square with the lowest index, a deterministic choice. Returns the
+/// squares removed. Breaks topology on purpose: a cavity becomes reachable.
+pub fn pierce_surfaces(x: &mut Complex) -> Vec<usize> {
     let n = x.cells.len();
     let mut seen = vec![false; n];
     let mut queue = std::collections::VecDeque::new();
@@ -243,7 +287,7 @@ pub fn pierce_surfaces(x: &mut Complex) -> usize {
     for &sq in &pierced {
         x.cells[sq] = false;
     }
-    pierced.len()
+    pierced
 }
 
 #[cfg(test)]
