@@ -8,6 +8,7 @@ use crate::complex::Complex;
 use crate::distance::{chessboard, euclidean_squared};
 use crate::grid::{Grid, GridError, GridSpec};
 use crate::labeling::{opening_forest_labelling, Labelling};
+use crate::mapping::NodeMapping;
 use crate::opening::opening;
 use crate::portals::{portals, Portal};
 use crate::skeleton::SkeletonGraph;
@@ -34,8 +35,8 @@ pub struct Analysis {
     pub complex: Complex,
     pub skeleton: SkeletonGraph,
     pub filtered: SkeletonGraph,
-    /// Node index + 1 of the filtered skeleton for every empty voxel (Alg. 5).
-    pub mapping: Grid<u32>,
+    /// Nodes of the filtered skeleton for every empty voxel and surface point (§6.4).
+    pub mapping: NodeMapping,
     pub labelling: Labelling,
     pub portals: Vec<Portal>,
     /// Seconds spent in each stage, in order.
@@ -81,7 +82,7 @@ pub fn analyse(
     let skeleton = SkeletonGraph::from_complex(&complex, &spec, &empty, &edt);
     let filtered = skeleton.filtered();
     lap("skeleton graph and filtering (Alg. 4)", &mut timings);
-    let mapping = filtered.mapping_grid(&empty);
+    let mapping = NodeMapping::new(&filtered, &empty);
     lap("node mapping grid (Alg. 5)", &mut timings);
     let labelling = opening_forest_labelling(&open);
     let portals = portals(&labelling);
@@ -107,7 +108,7 @@ mod tests {
         assert!(!a.filtered.nodes.is_empty());
         assert_eq!(a.timings.len(), 6);
         // Every empty voxel inside the walls maps to a node.
-        let inside = (0..a.spec.len()).filter(|&i| a.empty.data[i]).all(|i| a.mapping.data[i] != 0);
+        let inside = (0..a.spec.len()).filter(|&i| a.empty.data[i]).all(|i| a.mapping.node_of_voxel(i).is_some());
         assert!(inside);
     }
 

@@ -1,14 +1,11 @@
-//! The skeleton as a graph (thesis §6.3–6.4): nodes at the vertices of the curvilinear
-//! complex, with world position, the empty voxel they stand for and their maximal-ball
-//! radius (Euclidean distance to the scene); edges from the complex's edges. Also the
-//! filtered skeleton (Alg. 4), which merges nodes lying in the maximal ball of a larger
-//! one, and the node mapping grid (Alg. 5), a breadth-first labelling of the empty space
-//! by nearest node along 6-paths.
-
-use std::collections::VecDeque;
+//! The skeleton as a graph (thesis §6.3): nodes at the vertices of the curvilinear complex,
+//! with world position, the empty voxel they stand for and their maximal-ball radius
+//! (Euclidean distance to the scene); edges from the complex's edges. Filtering is in
+//! [`crate::filter`], the mapping of voxels and surface points to nodes in
+//! [`crate::mapping`].
 
 use crate::complex::Complex;
-use crate::grid::{neighbours6, Grid, GridSpec};
+use crate::grid::{Grid, GridSpec};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Node {
@@ -71,83 +68,6 @@ impl SkeletonGraph {
         adj
     }
 
-    /// Alg. 4: visiting nodes by decreasing radius, each node not yet merged takes every
-    /// unmerged node it reaches through the graph without leaving its maximal ball; merged
-    /// nodes' edges go to their representatives.
-    pub fn filtered(&self) -> SkeletonGraph {
-        let n = self.nodes.len();
-        let adj = self.adjacency();
-        let mut parent: Vec<u32> = (0..n as u32).collect();
-        let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| self.nodes[b].radius.total_cmp(&self.nodes[a].radius).then(a.cmp(&b)));
-        let mut visited = vec![u32::MAX; n];
-        let mut queue = VecDeque::new();
-        for &i in &order {
-            if parent[i] as usize != i {
-                continue;
-            }
-            let (ci, ri) = (self.nodes[i].position, self.nodes[i].radius);
-            visited[i] = i as u32;
-            queue.push_back(i);
-            while let Some(j) = queue.pop_front() {
-                for &k in &adj[j] {
-                    let k = k as usize;
-                    if visited[k] == i as u32 || dist(self.nodes[k].position, ci) > ri {
-                        continue;
-                    }
-                    visited[k] = i as u32;
-                    if parent[k] as usize == k && k != i {
-                        parent[k] = i as u32;
-                    }
-                    queue.push_back(k);
-                }
-            }
-        }
-        let mut index = vec![u32::MAX; n];
-        let mut out = SkeletonGraph::default();
-        for i in 0..n {
-            if parent[i] as usize == i {
-                index[i] = out.nodes.len() as u32;
-                out.nodes.push(self.nodes[i]);
-            }
-        }
-        let mut edges: Vec<[u32; 2]> = self
-            .edges
-            .iter()
-            .map(|&[a, b]| (index[parent[a as usize] as usize], index[parent[b as usize] as usize]))
-            .filter(|(a, b)| a != b)
-            .map(|(a, b)| [a.min(b), a.max(b)])
-            .collect();
-        edges.sort_unstable();
-        edges.dedup();
-        out.edges = edges;
-        out
-    }
-
-    /// Alg. 5: every empty voxel gets the index + 1 of the node reached first by a
-    /// breadth-first search from all nodes at once along 6-paths in the empty space (0 for
-    /// voxels no node reaches, such as empty pockets with no skeleton).
-    pub fn mapping_grid(&self, empty: &Grid<bool>) -> Grid<u32> {
-        let spec = empty.spec;
-        let mut grid = Grid::new(spec, 0u32);
-        let mut queue = VecDeque::new();
-        for (l, node) in self.nodes.iter().enumerate() {
-            if grid.data[node.voxel] == 0 {
-                grid.data[node.voxel] = l as u32 + 1;
-                queue.push_back(node.voxel);
-            }
-        }
-        while let Some(i) = queue.pop_front() {
-            for j in neighbours6(spec.dims, i) {
-                if empty.data[j] && grid.data[j] == 0 {
-                    grid.data[j] = grid.data[i];
-                    queue.push_back(j);
-                }
-            }
-        }
-        grid
-    }
-
     /// Number of connected components of the graph.
     pub fn components(&self) -> usize {
         let adj = self.adjacency();
@@ -172,10 +92,6 @@ impl SkeletonGraph {
     }
 }
 
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -184,7 +100,7 @@ mod tests {
     use crate::thinning::{curvilinear_skeleton, EdgeConstraint};
 
     #[test]
-    fn graph_filter_and_mapping_of_two_rooms() {
+    fn graph_and_filtered_graph_of_two_rooms() {
         let empty = two_rooms_and_a_gap(0.5);
         let (x, _) = curvilinear_skeleton(&empty, EdgeConstraint::Thesis);
         let edt = euclidean_squared(&empty, true);
@@ -199,13 +115,5 @@ mod tests {
         let f = g.filtered();
         assert!(f.nodes.len() < g.nodes.len(), "{} → {}", g.nodes.len(), f.nodes.len());
         assert_eq!(f.components(), 1, "filtering keeps the skeleton connected");
-        // Every empty voxel maps to a node, reached inside the empty space.
-        let m = f.mapping_grid(&empty);
-        for i in 0..empty.data.len() {
-            assert_eq!(empty.data[i], m.data[i] != 0, "voxel {i}");
-        }
-        // The two rooms map to different nodes.
-        let (left, right) = (*m.get(4, 4, 4), *m.get(20, 4, 4));
-        assert_ne!(left, right);
     }
 }

@@ -199,22 +199,35 @@ pub enum EdgeConstraint {
 /// left after thinning are pierced, one square each, and the thinning resumes, until only
 /// curves remain; a surface around k cavities needs k rounds.
 pub fn curvilinear_skeleton(set: &Grid<bool>, constraint: EdgeConstraint) -> (Complex, Dates) {
+    let (mut skeleton, dates, keep) = constraint_set(set, constraint);
+    thin_keeping(&mut skeleton, &keep);
+    (skeleton, dates)
+}
+
+/// The complex of `set`, the dates of its unconstrained thinning, and Alg. 3's constraint
+/// set W (see [`edge_constraint`]).
+pub fn constraint_set(set: &Grid<bool>, constraint: EdgeConstraint) -> (Complex, Dates, Vec<bool>) {
     let distance = l1(set, true);
     let opening = l1_opening(&distance);
-    let mut skeleton = Complex::from_voxels(set);
+    let complex = Complex::from_voxels(set);
     let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
-    par_dir_collapse(&mut skeleton.clone(), None, u32::MAX, Some(&mut dates));
-    let keep = edge_constraint(&skeleton, &dates, &distance, &opening, constraint);
-    par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
+    par_dir_collapse(&mut complex.clone(), None, u32::MAX, Some(&mut dates));
+    let keep = edge_constraint(&complex, &dates, &distance, &opening, constraint);
+    (complex, dates, keep)
+}
+
+/// Alg. 3 line 2 and §6.2.4: collapses `x` keeping the faces of `keep`, then pierces the
+/// surface parts left and collapses again, until only curves remain.
+pub fn thin_keeping(x: &mut Complex, keep: &[bool]) {
+    par_dir_collapse(x, Some(keep), u32::MAX, None);
     loop {
-        let pierced = pierce_surfaces(&mut skeleton);
+        let pierced = pierce_surfaces(x);
         if pierced.is_empty() {
             break;
         }
-        let around: Vec<usize> = pierced.iter().flat_map(|&sq| skeleton.facets(sq).map(|t| t.0)).collect();
-        collapse_from(&mut skeleton, Some(&keep), u32::MAX, None, Some(around));
+        let around: Vec<usize> = pierced.iter().flat_map(|&sq| x.facets(sq).map(|t| t.0)).collect();
+        collapse_from(x, Some(keep), u32::MAX, None, Some(around));
     }
-    (skeleton, dates)
 }
 
 /// Alg. 3 line 1: the edges of `x` (of finite lifespan, see [`curvilinear_skeleton`]) whose
@@ -462,6 +475,33 @@ mod tests {
         assert!(s.is_curvilinear(), "{:?}", s.face_counts());
         assert_eq!(betti(&s).0, 1);
         assert_eq!(betti(&s).2, 0);
+    }
+
+    /// The skeleton is a fixed point: thinning it again with its constraint set removes
+    /// and pierces nothing. Checked on every shape above.
+    #[test]
+    fn thinning_a_skeleton_again_changes_nothing() {
+        let shapes = [
+            set_from([24, 7, 7], 1.0, |x, y, z| (1..23).contains(&x) && (1..6).contains(&y) && (1..6).contains(&z)),
+            set_from([16, 16, 16], 1.0, |x, y, z| {
+                let room = (1..15).contains(&x) && (1..15).contains(&y) && (1..15).contains(&z);
+                room && !((6..10).contains(&x) && (6..10).contains(&y) && z == 10)
+            }),
+            two_rooms_and_a_gap(1.0),
+            random_object([9, 8, 7], 5, 0.8),
+        ];
+        for (i, set) in shapes.iter().enumerate() {
+            for constraint in [EdgeConstraint::Thesis, EdgeConstraint::ReleasedCode] {
+                let (mut x, _, keep) = constraint_set(set, constraint);
+                thin_keeping(&mut x, &keep);
+                assert!(x.is_curvilinear(), "shape {i}");
+                let once = x.clone();
+                thin_keeping(&mut x, &keep);
+                assert_eq!(x, once, "shape {i}, {constraint:?}: the second thinning changed the skeleton");
+                assert_eq!(par_dir_collapse(&mut x, Some(&keep), u32::MAX, None), 0);
+                assert!(pierce_surfaces(&mut x).is_empty());
+            }
+        }
     }
 
     /// A square ring of corridor gives exactly one cycle.
