@@ -1,5 +1,6 @@
 //! `skelight bench`: ray-tracing and estimator throughput, measured in one run so that
-//! backends can be compared as ratios on the same machine.
+//! backends can be compared as ratios on the same machine, and the empty-space analysis'
+//! time per stage and peak memory.
 
 use std::time::{Duration, Instant};
 
@@ -7,6 +8,7 @@ use rayon::prelude::*;
 use skelight::geometry::{offset_origin, Accelerator, BuildTriangle, Bvh, NoFilter, Ray};
 use skelight::math::Vec3;
 use skelight::sampling::{uniform_sphere, uniform_triangle, Distribution1D, Rng};
+use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings};
 
 /// Incoherent rays: origins on the surfaces (area-weighted), directions uniform on the
 /// sphere — what secondary bounces of a path tracer look like to the accelerator.
@@ -91,4 +93,43 @@ pub fn backends() -> Vec<(&'static str, Builder)> {
         }),
     ));
     v
+}
+
+/// Runs the empty-space analysis of `scene` `runs` times and prints the stage times of the
+/// fastest run, the node counts and the process' peak resident memory.
+pub fn skeleton(scene: &skelight::scene::Scene, settings: &AnalysisSettings, runs: usize) -> anyhow::Result<()> {
+    let triangles = crate::skeleton::scene_triangles(scene);
+    let mut best: Option<(f64, Analysis)> = None;
+    for _ in 0..runs {
+        let a = analyse(&triangles, settings)?;
+        let total: f64 = a.timings.iter().map(|t| t.1).sum();
+        if best.as_ref().is_none_or(|(t, _)| total < *t) {
+            best = Some((total, a));
+        }
+    }
+    let (total, a) = best.expect("at least one run");
+    let [w, h, d] = a.spec.dims;
+    println!(
+        "grid {w}×{h}×{d} ({:.2} M voxels), {} threads, best of {runs}",
+        (w * h * d) as f64 / 1e6,
+        rayon::current_num_threads()
+    );
+    for (stage, secs) in &a.timings {
+        println!("  {stage:<40} {secs:8.3} s");
+    }
+    println!("  {:<40} {total:8.3} s", "total");
+    println!(
+        "skeleton {} nodes → filtered {}; peak memory {}",
+        a.skeleton.nodes.len(),
+        a.filtered.nodes.len(),
+        peak_memory().map_or("unknown".into(), |kb| format!("{:.0} MB", kb as f64 / 1024.0))
+    );
+    Ok(())
+}
+
+/// Peak resident set size of this process in KiB (Linux), if the system reports it.
+fn peak_memory() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }

@@ -3,6 +3,7 @@
 mod bench;
 mod compare;
 mod skeleton;
+mod skeleton_pictures;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -17,6 +18,7 @@ use skelight::integrator::bpt::Bpt;
 use skelight::integrator::mis::Heuristic;
 use skelight::integrator::{self, RenderOptions};
 use skelight::scene::{self, Scene};
+use skelight_shape::pipeline::AnalysisSettings;
 use skelight_shape::thinning::EdgeConstraint;
 
 #[derive(Parser)]
@@ -46,7 +48,8 @@ enum Command {
     /// Equal-time comparison of estimators against a reference, with a report.
     Compare(CompareArgs),
     /// Analyse the empty space: the curvilinear skeleton, its filtered graph, opening-forest
-    /// labels and portals, written to DIR (JSON, PLY line sets, a timing report).
+    /// labels and portals, written to DIR (JSON, PLY line sets, a timing report), and
+    /// pictures: the skeleton over a render, node mapping and labels in false colours.
     Skeleton {
         /// Scene file. Omit for the embedded default scene.
         scene: Option<PathBuf>,
@@ -62,6 +65,21 @@ enum Command {
         /// Scene parameter substitution, as Mitsuba's -D name=value.
         #[arg(short = 'D', value_parser = parse_define)]
         define: Vec<(String, String)>,
+        /// Analyse only this box of the scene, XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (world units),
+        /// instead of the scene's bounds grown by 10 %: for a building inside a huge ground
+        /// plane or sky, such as classroom.
+        #[arg(long, value_parser = parse_box)]
+        bounds: Option<[[f64; 3]; 2]>,
+        /// Analyse only the empty space enclosed by the scene (drop the air joined to the
+        /// grid's border, such as the shell around a closed building).
+        #[arg(long)]
+        enclosed_only: bool,
+        /// Longest side, in pixels, of the pictures (the scene's camera, same aspect).
+        #[arg(long, default_value_t = 640)]
+        picture_size: usize,
+        /// Write no pictures (no render).
+        #[arg(long)]
+        no_pictures: bool,
         #[arg(short, long)]
         quiet: bool,
     },
@@ -154,6 +172,19 @@ enum BenchKind {
         rays: usize,
         #[arg(long, default_value_t = 0)]
         threads: usize,
+    },
+    /// Time per stage and peak memory of the empty-space analysis (best of --runs).
+    Skeleton {
+        scene: PathBuf,
+        #[arg(long, default_value_t = 128)]
+        resolution: usize,
+        /// As `skelight skeleton --bounds`.
+        #[arg(long, value_parser = parse_box)]
+        bounds: Option<[[f64; 3]; 2]>,
+        #[arg(long)]
+        enclosed_only: bool,
+        #[arg(long, default_value_t = 3)]
+        runs: usize,
     },
     /// Samples per second of an estimator on a scene.
     Render {
@@ -249,6 +280,15 @@ fn parse_constraint(s: &str) -> Result<EdgeConstraint, String> {
     }
 }
 
+fn parse_box(s: &str) -> Result<[[f64; 3]; 2], String> {
+    let v: Vec<f64> =
+        s.split(',').map(|t| t.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
+    match v[..] {
+        [a, b, c, d, e, f] if v.iter().all(|x| x.is_finite()) && a < d && b < e && c < f => Ok([[a, b, c], [d, e, f]]),
+        _ => Err("expected XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX: six finite numbers, each minimum below its maximum".into()),
+    }
+}
+
 fn parse_heuristic(s: &str) -> Result<Heuristic, String> {
     Heuristic::parse(s).ok_or_else(|| format!("unknown heuristic '{s}'; use balance or power"))
 }
@@ -289,6 +329,12 @@ fn use_backend(scene: &mut Scene, name: &str) -> Result<()> {
 
 fn bench(what: BenchKind) -> Result<()> {
     match what {
+        BenchKind::Skeleton { scene, resolution, bounds, enclosed_only, runs } => {
+            let scene = load_scene(Some(&scene), &[])?;
+            let settings =
+                AnalysisSettings { resolution, region: bounds, enclosed_only, ..AnalysisSettings::default() };
+            bench::skeleton(&scene, &settings, runs.max(1))
+        }
         BenchKind::Rays { scenes, rays, threads } => {
             rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().ok();
             println!(
@@ -662,9 +708,34 @@ fn main() {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Render(a) => render(a),
-        Command::Skeleton { scene, resolution, constraint, output, define, quiet } => (|| {
-            let scene = load_scene(scene.as_deref(), &define)?;
-            skeleton::run(&scene, resolution, constraint, &output, quiet)?;
+        Command::Skeleton {
+            scene,
+            resolution,
+            constraint,
+            bounds,
+            enclosed_only,
+            output,
+            define,
+            picture_size,
+            no_pictures,
+            quiet,
+        } => (|| {
+            let mut scene = load_scene(scene.as_deref(), &define)?;
+            let settings = AnalysisSettings { resolution, constraint, region: bounds, enclosed_only };
+            let analysis = skeleton::run(&scene, &settings, &output, quiet)?;
+            if no_pictures {
+                return Ok(());
+            }
+            if !(16..=8192).contains(&picture_size) {
+                bail!("--picture-size must be 16 to 8192 pixels, not {picture_size}");
+            }
+            let (w, h) = (scene.settings.width as f64, scene.settings.height as f64);
+            let scale = picture_size as f64 / w.max(h);
+            scene.set_resolution(((w * scale).round() as usize).max(1), ((h * scale).round() as usize).max(1));
+            let files = skeleton_pictures::write(&scene, &analysis, &output)?;
+            if !quiet {
+                eprintln!("pictures: {}", files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "));
+            }
             Ok(())
         })(),
         Command::Bench { what } => bench(what),

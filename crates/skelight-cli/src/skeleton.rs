@@ -7,16 +7,18 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use skelight::scene::Scene;
-use skelight_shape::pipeline::{analyse, Analysis};
+use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings};
 use skelight_shape::skeleton::SkeletonGraph;
-use skelight_shape::thinning::EdgeConstraint;
 
 /// Runs the analysis of `scene` at `resolution` voxels on the longest side and writes its
 /// outputs into `dir`.
-pub fn run(scene: &Scene, resolution: usize, constraint: EdgeConstraint, dir: &Path, quiet: bool) -> Result<Analysis> {
-    let triangles: Vec<[[f64; 3]; 3]> =
-        scene.build_triangles().iter().map(|t| t.v.map(|p| [p.x as f64, p.y as f64, p.z as f64])).collect();
-    let a = analyse(&triangles, resolution, constraint).context("empty-space analysis")?;
+pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) -> Result<Analysis> {
+    let a = analyse(&scene_triangles(scene), settings).context("empty-space analysis")?;
+    if a.enclosed == 0.0 {
+        eprintln!(
+            "warning: the scene encloses no empty space at this resolution (every empty voxel reaches the grid's border): the skeleton describes the space around it"
+        );
+    }
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let write = |name: &str, text: &str| crate::write_text(&dir.join(name), text);
     write("skeleton.json", &graph_json(&a.skeleton))?;
@@ -26,7 +28,8 @@ pub fn run(scene: &Scene, resolution: usize, constraint: EdgeConstraint, dir: &P
     write("portals.json", &portals_json(&a))?;
     let mut report = String::new();
     let [w, h, d] = a.spec.dims;
-    let _ = writeln!(report, "grid {w}×{h}×{d}, voxel {:.4}", a.spec.voxel);
+    let _ = writeln!(report, "grid {w}×{h}×{d}, voxel {:.4}, origin {:?}", a.spec.voxel, a.spec.origin);
+    let _ = writeln!(report, "enclosed empty space: {:.1} % of the empty voxels", a.enclosed * 100.0);
     let total: f64 = a.timings.iter().map(|t| t.1).sum();
     for (stage, secs) in &a.timings {
         let _ = writeln!(report, "{stage:<40} {secs:8.3} s");
@@ -47,6 +50,11 @@ pub fn run(scene: &Scene, resolution: usize, constraint: EdgeConstraint, dir: &P
         eprint!("{report}");
     }
     Ok(a)
+}
+
+/// The scene's triangles as the analysis takes them.
+pub fn scene_triangles(scene: &Scene) -> Vec<[[f64; 3]; 3]> {
+    scene.build_triangles().iter().map(|t| t.v.map(|p| [p.x as f64, p.y as f64, p.z as f64])).collect()
 }
 
 fn graph_json(g: &SkeletonGraph) -> String {

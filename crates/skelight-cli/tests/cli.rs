@@ -104,16 +104,37 @@ fn bpt_strategy_images_add_up_to_the_render() {
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("apply to --integrator bpt"));
 }
 
-/// `skelight skeleton` on the default scene writes the skeletons, portals and a report;
-/// absurd resolutions are refused with a reason.
+/// `skelight skeleton` on the default scene writes the skeletons, portals, a report and the
+/// pictures; absurd resolutions and boxes are refused with a reason.
 #[test]
-fn skeleton_writes_graphs_portals_and_a_report() {
+fn skeleton_writes_graphs_portals_a_report_and_pictures() {
     let d = tmp("skeleton");
-    let log = run_ok(&["skeleton", "--resolution", "40", "-o", d.to_str().unwrap()]);
+    let log = run_ok(&["skeleton", "--resolution", "64", "--picture-size", "160", "-o", d.to_str().unwrap()]);
     assert!(log.contains("total") && log.contains("filtered"), "{log}");
     for f in ["skeleton.json", "skeleton_filtered.json", "skeleton.ply", "skeleton_filtered.ply", "portals.json"] {
         assert!(d.join(f).exists(), "{f} missing");
     }
+    // Pictures through the scene's camera: the skeleton drawn in its yellow or blue, the
+    // two rooms' surfaces mapped to several nodes and regions.
+    let distinct = |name: &str| {
+        let img = Image::load(&d.join(name)).unwrap();
+        assert_eq!(img.width.max(img.height), 160, "{name}");
+        let mut colours: Vec<[u32; 3]> =
+            img.pixels.iter().map(|p| [p.r, p.g, p.b].map(|c| (c * 64.0) as u32)).collect();
+        colours.sort_unstable();
+        colours.dedup();
+        (img, colours.len())
+    };
+    let (view, _) = distinct("skeleton_view.png");
+    // PNG values as stored (sRGB): the yellow (1, 0.8, 0.05) reads about (1, 0.91, 0.25).
+    assert!(view.pixels.iter().any(|p| p.r > 0.9 && p.g > 0.75 && p.b < 0.4), "no yellow skeleton drawn");
+    for name in ["mapping_filtered.png", "mapping.png", "labels.png"] {
+        let (_, n) = distinct(name);
+        assert!(n >= 8, "{name}: {n} colours");
+    }
+    let out = bin().args(["skeleton", "--bounds", "1,0,0,0,1,1", "-o", d.to_str().unwrap()]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("XMIN,YMIN"), "{err}");
     let json = std::fs::read_to_string(d.join("skeleton_filtered.json")).unwrap();
     assert!(json.contains("\"position\"") && json.contains("\"radius\"") && json.contains("\"edges\""));
     for res in ["0", "100000"] {

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::complex::Complex;
 use crate::distance::{chessboard, euclidean_squared};
-use crate::grid::{Grid, GridError, GridSpec};
+use crate::grid::{neighbours6, Grid, GridError, GridSpec};
 use crate::labeling::{opening_forest_labelling, Labelling};
 use crate::mapping::NodeMapping;
 use crate::opening::opening;
@@ -27,6 +27,8 @@ pub enum AnalysisError {
     Grid(#[from] GridError),
     #[error("no empty voxel at this resolution: the scene fills its whole grid")]
     NoEmptySpace,
+    #[error("the scene encloses no empty space at this resolution (every empty voxel reaches the grid's border), so nothing is left with enclosed-only")]
+    NothingEnclosed,
 }
 
 pub struct Analysis {
@@ -39,17 +41,36 @@ pub struct Analysis {
     pub mapping: NodeMapping,
     pub labelling: Labelling,
     pub portals: Vec<Portal>,
+    /// Fraction of the empty voxels that no 6-path joins to the grid's border: 0 for a scene
+    /// that encloses no space (an open plane, a model seen from outside).
+    pub enclosed: f64,
     /// Seconds spent in each stage, in order.
     pub timings: Vec<(&'static str, f64)>,
 }
 
-/// Runs every stage on `triangles` with a grid whose longest side has `resolution` voxels
-/// over the scene's bounds grown by 10 % (the seeds' set-up).
-pub fn analyse(
-    triangles: &[[[f64; 3]; 3]],
-    resolution: usize,
-    constraint: EdgeConstraint,
-) -> Result<Analysis, AnalysisError> {
+/// What to analyse and how finely.
+#[derive(Clone, Copy, Debug)]
+pub struct AnalysisSettings {
+    /// Voxels on the longest side of the grid.
+    pub resolution: usize,
+    pub constraint: EdgeConstraint,
+    /// The box to analyse, `[min, max]`; `None` for the scene's bounds grown by 10 % (the
+    /// seeds' set-up). A scene inside a huge ground plane or sky needs its building's box.
+    pub region: Option<[[f64; 3]; 2]>,
+    /// Drop the empty voxels joined to the grid's border before thinning: for a closed
+    /// building, the shell of air around it in the grid's margin, which has a skeleton of
+    /// its own that no light path inside ever uses.
+    pub enclosed_only: bool,
+}
+
+impl Default for AnalysisSettings {
+    fn default() -> Self {
+        AnalysisSettings { resolution: 128, constraint: EdgeConstraint::Thesis, region: None, enclosed_only: false }
+    }
+}
+
+/// Runs every stage on `triangles` (those outside the region are clipped away).
+pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Result<Analysis, AnalysisError> {
     let mut timings = Vec::new();
     let mut clock = Instant::now();
     let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
@@ -66,18 +87,32 @@ pub fn analyse(
     if !lo[0].is_finite() {
         return Err(AnalysisError::NoTriangles);
     }
-    let spec = GridSpec::from_bounds(lo, hi, resolution, 0.05)?;
+    let spec = match settings.region {
+        Some([min, max]) => GridSpec::from_bounds(min, max, settings.resolution, 0.0)?,
+        None => GridSpec::from_bounds(lo, hi, settings.resolution, 0.05)?,
+    };
     spec.check_memory(BYTES_PER_VOXEL)?;
-    let empty = empty_space(&voxelize(&spec, triangles));
+    let mut empty = empty_space(&voxelize(&spec, triangles));
     if !empty.data.iter().any(|&e| e) {
         return Err(AnalysisError::NoEmptySpace);
+    }
+    let outside = reached_from_border(&empty);
+    let total = empty.data.iter().filter(|&&e| e).count();
+    let enclosed = (total - outside.iter().filter(|&&r| r).count()) as f64 / total as f64;
+    if settings.enclosed_only {
+        if enclosed == 0.0 {
+            return Err(AnalysisError::NothingEnclosed);
+        }
+        for (e, &out) in empty.data.iter_mut().zip(&outside) {
+            *e &= !out;
+        }
     }
     lap("voxelise", &mut timings);
     let chess = chessboard(&empty, true);
     let edt = euclidean_squared(&empty, true);
     let open = opening(&chess);
     lap("distance and opening maps", &mut timings);
-    let (complex, _) = curvilinear_skeleton(&empty, constraint);
+    let (complex, _) = curvilinear_skeleton(&empty, settings.constraint);
     lap("thinning (Alg. 2-3, piercing)", &mut timings);
     let skeleton = SkeletonGraph::from_complex(&complex, &spec, &empty, &edt);
     let filtered = skeleton.filtered();
@@ -87,12 +122,41 @@ pub fn analyse(
     let labelling = opening_forest_labelling(&open);
     let portals = portals(&labelling);
     lap("opening-forest labels and portals", &mut timings);
-    Ok(Analysis { spec, empty, complex, skeleton, filtered, mapping, labelling, portals, timings })
+    Ok(Analysis { spec, empty, complex, skeleton, filtered, mapping, labelling, portals, enclosed, timings })
+}
+
+/// The empty voxels joined to the grid's border by 6-paths of empty voxels.
+fn reached_from_border(empty: &Grid<bool>) -> Vec<bool> {
+    let dims = empty.spec.dims;
+    let mut reached = vec![false; empty.data.len()];
+    let mut stack: Vec<usize> = (0..empty.data.len())
+        .filter(|&i| {
+            let (x, y, z) = (i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1]));
+            let border = x == 0 || y == 0 || z == 0 || x + 1 == dims[0] || y + 1 == dims[1] || z + 1 == dims[2];
+            border && empty.data[i]
+        })
+        .collect();
+    for &i in &stack {
+        reached[i] = true;
+    }
+    while let Some(i) = stack.pop() {
+        for j in neighbours6(dims, i) {
+            if empty.data[j] && !reached[j] {
+                reached[j] = true;
+                stack.push(j);
+            }
+        }
+    }
+    reached
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn at(resolution: usize) -> AnalysisSettings {
+        AnalysisSettings { resolution, ..Default::default() }
+    }
 
     /// A closed box of 12 triangles: one room, a connected skeleton inside it.
     fn closed_box(lo: f64, hi: f64) -> Vec<[[f64; 3]; 3]> {
@@ -103,7 +167,7 @@ mod tests {
 
     #[test]
     fn a_closed_room_gives_one_connected_skeleton() {
-        let a = analyse(&closed_box(0.0, 1.0), 24, EdgeConstraint::Thesis).unwrap();
+        let a = analyse(&closed_box(0.0, 1.0), &at(24)).unwrap();
         assert_eq!(a.skeleton.components(), a.filtered.components());
         assert!(!a.filtered.nodes.is_empty());
         assert_eq!(a.timings.len(), 6);
@@ -112,19 +176,45 @@ mod tests {
         assert!(inside);
     }
 
+    /// A huge ground plane far from the room does not dilute the grid when a region is given,
+    /// and a scene that encloses nothing says so.
+    #[test]
+    fn a_region_clips_the_scene_and_open_scenes_enclose_nothing() {
+        let room = closed_box(0.0, 1.0);
+        let alone = analyse(&room, &at(24)).unwrap();
+        assert!(alone.enclosed > 0.3, "{}", alone.enclosed);
+        let mut with_ground = room.clone();
+        with_ground.push([[-100.0, -1.0, -100.0], [100.0, -1.0, -100.0], [0.0, -1.0, 100.0]]);
+        let region = Some([[-0.05, -0.05, -0.05], [1.05, 1.05, 1.05]]);
+        let clipped = analyse(&with_ground, &AnalysisSettings { region, ..at(24) }).unwrap();
+        assert!((clipped.spec.voxel - 1.1 / 24.0).abs() < 1e-12);
+        assert!(clipped.enclosed > 0.5 && !clipped.filtered.nodes.is_empty());
+        let diluted = analyse(&with_ground, &at(24)).unwrap();
+        assert!(diluted.spec.voxel > 5.0, "the plane sets the grid: the room is a voxel or two");
+        let plane = [[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]];
+        assert_eq!(analyse(&plane, &at(16)).unwrap().enclosed, 0.0);
+        let only = AnalysisSettings { enclosed_only: true, ..at(16) };
+        assert!(matches!(analyse(&plane, &only), Err(AnalysisError::NothingEnclosed)));
+        // Inside only: the shell of air around the box goes, the room stays.
+        let inside = analyse(&room, &AnalysisSettings { enclosed_only: true, ..at(24) }).unwrap();
+        assert_eq!(inside.enclosed, alone.enclosed);
+        assert!(inside.empty.data.iter().filter(|&&e| e).count() < alone.empty.data.iter().filter(|&&e| e).count());
+        assert_eq!(inside.filtered.components(), 1);
+        assert!(alone.filtered.components() >= 2, "room and shell");
+        let inverted = Some([[1.0; 3], [0.0; 3]]);
+        assert!(analyse(&room, &AnalysisSettings { region: inverted, ..at(16) }).is_err());
+    }
+
     #[test]
     fn bad_input_is_refused_with_a_reason() {
-        assert!(matches!(analyse(&[], 32, EdgeConstraint::Thesis), Err(AnalysisError::NoTriangles)));
+        assert!(matches!(analyse(&[], &at(32)), Err(AnalysisError::NoTriangles)));
         let nan = [[[f64::NAN; 3]; 3]];
-        assert!(matches!(analyse(&nan, 32, EdgeConstraint::Thesis), Err(AnalysisError::NoTriangles)));
+        assert!(matches!(analyse(&nan, &at(32)), Err(AnalysisError::NoTriangles)));
         // Degenerate triangles (all on a point) have empty bounds.
         let point = [[[1.0; 3]; 3]];
-        assert!(matches!(
-            analyse(&point, 32, EdgeConstraint::Thesis),
-            Err(AnalysisError::Grid(GridError::EmptyBounds))
-        ));
-        let err = analyse(&closed_box(0.0, 1.0), 100_000, EdgeConstraint::Thesis).err().unwrap();
+        assert!(matches!(analyse(&point, &at(32)), Err(AnalysisError::Grid(GridError::EmptyBounds))));
+        let err = analyse(&closed_box(0.0, 1.0), &at(100_000)).err().unwrap();
         assert!(matches!(err, AnalysisError::Grid(GridError::TooLarge(..))), "{err}");
-        assert!(analyse(&closed_box(0.0, 1.0), 0, EdgeConstraint::Thesis).is_err());
+        assert!(analyse(&closed_box(0.0, 1.0), &at(0)).is_err());
     }
 }

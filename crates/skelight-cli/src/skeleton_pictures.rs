@@ -1,0 +1,155 @@
+//! Pictures of the empty-space analysis that a person can judge (thesis Fig. 41–46 and 85):
+//! the scene with the skeleton drawn over it (visible parts yellow, parts behind surfaces
+//! blue, junctions and ends as dots), the node mapping as false colours on the visible
+//! surfaces (every two points of one colour map to the same node), and the opening-forest
+//! labelling the same way. The scene is shown with headlight shading (grey, brighter where
+//! a surface faces the camera): the interiors these methods are for are too noisy to read
+//! in a quick render.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use rayon::prelude::*;
+use skelight::color::{rgb, Rgb};
+use skelight::geometry::Ray;
+use skelight::imageio::Image;
+use skelight::math::{vec2, vec3, Vec3};
+use skelight::scene::{Scene, SurfaceInteraction};
+use skelight_shape::mapping::{surface_voxel, NodeMapping};
+use skelight_shape::pipeline::Analysis;
+use skelight_shape::skeleton::SkeletonGraph;
+
+/// Writes the pictures of the analysis `a` of `scene`, seen through its camera at its
+/// current resolution, into `dir`. Returns the files written.
+pub fn write(scene: &Scene, a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    let hits: Vec<Option<SurfaceInteraction>> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            scene
+                .intersect(&scene.camera.generate_ray(vec2((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), vec2(0.5, 0.5)))
+        })
+        .collect();
+    let backdrop = false_colours(w, h, &hits, |_| None);
+    let mut written = Vec::new();
+    let mut save = |name: &str, img: &Image| -> Result<()> {
+        let path = dir.join(name);
+        img.save_png(&path, 0.0).with_context(|| format!("writing {}", path.display()))?;
+        written.push(path);
+        Ok(())
+    };
+    save("skeleton_view.png", &with_skeleton(scene, &backdrop, &a.skeleton))?;
+    save("skeleton_filtered_view.png", &with_skeleton(scene, &backdrop, &a.filtered))?;
+    let full_mapping = NodeMapping::new(&a.skeleton, &a.empty);
+    for (name, mapping) in [("mapping.png", &full_mapping), ("mapping_filtered.png", &a.mapping)] {
+        let img = false_colours(w, h, &hits, |si| mapping.node_at(point(si.p), point(si.ng), point(si.wi)));
+        save(name, &img)?;
+    }
+    let labels = &a.labelling.labels;
+    let img = false_colours(w, h, &hits, |si| {
+        let labelled = |v: usize| labels.data[v] != 0;
+        surface_voxel(&labels.spec, labelled, point(si.p), point(si.ng), point(si.wi)).map(|v| labels.data[v])
+    });
+    save("labels.png", &img)?;
+    Ok(written)
+}
+
+fn point(v: Vec3) -> [f64; 3] {
+    [v.x as f64, v.y as f64, v.z as f64]
+}
+
+/// Surface points of the primary hits coloured by the label `label_of` gives them, shaded by
+/// the angle they are seen at (headlight shading); grey where a point has no label, black
+/// where nothing is hit.
+fn false_colours(
+    w: usize,
+    h: usize,
+    hits: &[Option<SurfaceInteraction>],
+    label_of: impl Fn(&SurfaceInteraction) -> Option<u32> + Sync,
+) -> Image {
+    let pixels = hits
+        .par_iter()
+        .map(|hit| {
+            let Some(si) = hit else { return Rgb::BLACK };
+            let shade = 0.35 + 0.65 * si.ng.dot(si.wi).abs();
+            label_of(si).map_or(rgb(0.25, 0.25, 0.25), distinct_colour) * shade
+        })
+        .collect();
+    Image { width: w, height: h, pixels }
+}
+
+/// A colour per label, neighbouring labels far apart in hue (golden-ratio steps) and in
+/// brightness (three levels).
+fn distinct_colour(label: u32) -> Rgb {
+    let hue = (label as f64 * 0.618_033_988_75).fract() * 6.0;
+    let value = [1.0, 0.7, 0.45][(label % 3) as usize];
+    let (sector, f) = (hue.floor() as u32, hue.fract() as f32);
+    let (s, v) = (0.75f32, value as f32);
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    let [r, g, b] = match sector {
+        0 => [v, t, p],
+        1 => [q, v, p],
+        2 => [p, v, t],
+        3 => [p, q, v],
+        4 => [t, p, v],
+        _ => [v, p, q],
+    };
+    // The PNG writer encodes sRGB: undo it roughly (gamma 2) so the picture shows these.
+    rgb(r * r, g * g, b * b)
+}
+
+/// `backdrop` with the edges of `graph` drawn over it, yellow where the camera sees them and
+/// blue where a surface hides them, and its junctions and ends as red (or blue) dots.
+fn with_skeleton(scene: &Scene, backdrop: &Image, graph: &SkeletonGraph) -> Image {
+    let mut img = backdrop.clone();
+    let cam = scene.camera.position;
+    let world = |p: [f64; 3]| vec3(p[0] as f32, p[1] as f32, p[2] as f32);
+    let seen = |q: Vec3| !scene.occluded(&Ray { o: cam, d: q - cam, tmax: 1.0 - 1e-4 });
+    let project = |q: Vec3| scene.camera.raster_of(cam, (q - cam).normalize());
+    let (visible, hidden) = (rgb(1.0, 0.8, 0.05), rgb(0.1, 0.35, 1.0));
+    for &[a, b] in &graph.edges {
+        let (pa, pb) = (world(graph.nodes[a as usize].position), world(graph.nodes[b as usize].position));
+        // About two samples per pixel of the edge's length on the film.
+        let steps = match (project(pa), project(pb)) {
+            (Some(ra), Some(rb)) => ((ra.x - rb.x).hypot(ra.y - rb.y) * 2.0).clamp(2.0, 8192.0) as usize,
+            _ => 512,
+        };
+        for k in 0..=steps {
+            let q = pa + (pb - pa) * (k as f32 / steps as f32);
+            if let Some(r) = project(q) {
+                let in_view = seen(q);
+                dot(&mut img, r.x, r.y, if in_view { 1.2 } else { 0.6 }, if in_view { visible } else { hidden });
+            }
+        }
+    }
+    let degree = graph.adjacency();
+    for (n, links) in graph.nodes.iter().zip(&degree) {
+        if links.len() == 2 {
+            continue;
+        }
+        let q = world(n.position);
+        if let Some(r) = project(q) {
+            let c = if seen(q) { rgb(1.0, 0.15, 0.05) } else { hidden };
+            dot(&mut img, r.x, r.y, 2.5, c);
+        }
+    }
+    img
+}
+
+/// Paints a disc of `radius` pixels centred at film position (x, y).
+fn dot(img: &mut Image, x: f32, y: f32, radius: f32, c: Rgb) {
+    let r = radius.ceil() as i64;
+    for dy in -r..=r {
+        for dx in -r..=r {
+            let (px, py) = (x.floor() as i64 + dx, y.floor() as i64 + dy);
+            let (cx, cy) = (px as f32 + 0.5 - x, py as f32 + 0.5 - y);
+            if cx * cx + cy * cy > radius * radius || px < 0 || py < 0 {
+                continue;
+            }
+            let (px, py) = (px as usize, py as usize);
+            if px < img.width && py < img.height {
+                img.pixels[py * img.width + px] = c;
+            }
+        }
+    }
+}
