@@ -74,6 +74,10 @@ enum Command {
         /// grid's border, such as the shell around a closed building).
         #[arg(long)]
         enclosed_only: bool,
+        /// Scene elements the skeleton must reach (seed 001 §3.2), comma-separated: lights
+        /// (area lights' centroids on their emitting side, point and spot lights), camera.
+        #[arg(long, value_enum, value_delimiter = ',')]
+        anchors: Vec<skeleton::AnchorKind>,
         /// Longest side, in pixels, of the pictures (the scene's camera, same aspect).
         #[arg(long, default_value_t = 640)]
         picture_size: usize,
@@ -714,6 +718,7 @@ fn main() {
             constraint,
             bounds,
             enclosed_only,
+            anchors,
             output,
             define,
             picture_size,
@@ -721,7 +726,8 @@ fn main() {
             quiet,
         } => (|| {
             let mut scene = load_scene(scene.as_deref(), &define)?;
-            let settings = AnalysisSettings { resolution, constraint, region: bounds, enclosed_only };
+            let anchors = skeleton::anchors(&scene, &anchors);
+            let settings = AnalysisSettings { resolution, constraint, region: bounds, enclosed_only, anchors };
             let analysis = skeleton::run(&scene, &settings, &output, quiet)?;
             if no_pictures {
                 return Ok(());

@@ -6,14 +6,25 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use skelight::light::Light;
+use skelight::math::Vec3;
 use skelight::scene::Scene;
-use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings};
+use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings, Anchor};
 use skelight_shape::skeleton::SkeletonGraph;
 
 /// Runs the analysis of `scene` at `resolution` voxels on the longest side and writes its
 /// outputs into `dir`.
 pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) -> Result<Analysis> {
     let a = analyse(&scene_triangles(scene), settings).context("empty-space analysis")?;
+    for (anchor, voxel) in settings.anchors.iter().zip(&a.anchor_voxels) {
+        if voxel.is_none() {
+            eprintln!(
+                "warning: no empty voxel within {} voxels of the anchor at {:?} on its side: the skeleton is not pulled there",
+                skelight_shape::pipeline::ANCHOR_REACH,
+                anchor.position
+            );
+        }
+    }
     if a.enclosed == 0.0 {
         eprintln!(
             "warning: the scene encloses no empty space at this resolution (every empty voxel reaches the grid's border): the skeleton describes the space around it"
@@ -30,6 +41,10 @@ pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) 
     let [w, h, d] = a.spec.dims;
     let _ = writeln!(report, "grid {w}×{h}×{d}, voxel {:.4}, origin {:?}", a.spec.voxel, a.spec.origin);
     let _ = writeln!(report, "enclosed empty space: {:.1} % of the empty voxels", a.enclosed * 100.0);
+    let found = a.anchor_voxels.iter().filter(|v| v.is_some()).count();
+    if !a.anchor_voxels.is_empty() {
+        let _ = writeln!(report, "anchors: {found} of {} placed in the empty space", a.anchor_voxels.len());
+    }
     let total: f64 = a.timings.iter().map(|t| t.1).sum();
     for (stage, secs) in &a.timings {
         let _ = writeln!(report, "{stage:<40} {secs:8.3} s");
@@ -50,6 +65,46 @@ pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) 
         eprint!("{report}");
     }
     Ok(a)
+}
+
+/// Which scene elements the skeleton must reach.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum AnchorKind {
+    Lights,
+    Camera,
+}
+
+/// Anchors for the scene's lights (an area light's centroid, on the side it faces; point
+/// and spot lights' positions; distant lights have no place) and its camera.
+pub fn anchors(scene: &Scene, kinds: &[AnchorKind]) -> Vec<Anchor> {
+    let f = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
+    let mut out = Vec::new();
+    if kinds.contains(&AnchorKind::Lights) {
+        for light in &scene.lights {
+            match light {
+                Light::Area(e) => {
+                    let (mut centroid, mut normal, mut area) = (Vec3::ZERO, Vec3::ZERO, 0.0);
+                    for [a, b, c] in &e.triangles {
+                        let n = (*b - *a).cross(*c - *a) * 0.5;
+                        centroid += (*a + *b + *c) * (n.length() / 3.0);
+                        normal += n;
+                        area += n.length();
+                    }
+                    if area > 0.0 {
+                        out.push(Anchor { position: f(centroid / area), side: f(normal) });
+                    }
+                }
+                Light::Point { position, .. } | Light::Spot { position, .. } => {
+                    out.push(Anchor { position: f(*position), side: [0.0; 3] })
+                }
+                _ => {}
+            }
+        }
+    }
+    if kinds.contains(&AnchorKind::Camera) {
+        out.push(Anchor { position: f(scene.camera.position), side: [0.0; 3] });
+    }
+    out
 }
 
 /// The scene's triangles as the analysis takes them.

@@ -132,6 +132,20 @@ fn skeleton_writes_graphs_portals_a_report_and_pictures() {
         let (_, n) = distinct(name);
         assert!(n >= 8, "{name}: {n} colours");
     }
+    // Anchored at the light and the camera: both placed, reported.
+    let a = d.join("anchored");
+    run_ok(&[
+        "skeleton",
+        "--resolution",
+        "48",
+        "--anchors",
+        "lights,camera",
+        "--no-pictures",
+        "-o",
+        a.to_str().unwrap(),
+    ]);
+    let report = std::fs::read_to_string(a.join("report.txt")).unwrap();
+    assert!(report.contains("anchors: 2 of 2 placed"), "{report}");
     let out = bin().args(["skeleton", "--bounds", "1,0,0,0,1,1", "-o", d.to_str().unwrap()]).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("XMIN,YMIN"), "{err}");

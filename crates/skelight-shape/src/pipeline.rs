@@ -41,6 +41,9 @@ pub struct Analysis {
     pub mapping: NodeMapping,
     pub labelling: Labelling,
     pub portals: Vec<Portal>,
+    /// The empty voxel standing for each anchor, `None` where none lies within
+    /// [`ANCHOR_REACH`] voxels on its side.
+    pub anchor_voxels: Vec<Option<usize>>,
     /// Fraction of the empty voxels that no 6-path joins to the grid's border: 0 for a scene
     /// that encloses no space (an open plane, a model seen from outside).
     pub enclosed: f64,
@@ -48,8 +51,20 @@ pub struct Analysis {
     pub timings: Vec<(&'static str, f64)>,
 }
 
+/// A point the skeleton must reach (seed 001 §3.2: lights, the camera). `side` picks the
+/// half-space to look in for the empty voxel standing for it, such as the side a light quad
+/// emits to; zero for either side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Anchor {
+    pub position: [f64; 3],
+    pub side: [f64; 3],
+}
+
+/// How far, in voxels, an anchor may lie from the empty voxel that stands for it.
+pub const ANCHOR_REACH: i64 = 4;
+
 /// What to analyse and how finely.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct AnalysisSettings {
     /// Voxels on the longest side of the grid.
     pub resolution: usize,
@@ -61,11 +76,19 @@ pub struct AnalysisSettings {
     /// building, the shell of air around it in the grid's margin, which has a skeleton of
     /// its own that no light path inside ever uses.
     pub enclosed_only: bool,
+    /// Points the skeleton must reach.
+    pub anchors: Vec<Anchor>,
 }
 
 impl Default for AnalysisSettings {
     fn default() -> Self {
-        AnalysisSettings { resolution: 128, constraint: EdgeConstraint::Thesis, region: None, enclosed_only: false }
+        AnalysisSettings {
+            resolution: 128,
+            constraint: EdgeConstraint::Thesis,
+            region: None,
+            enclosed_only: false,
+            anchors: Vec::new(),
+        }
     }
 }
 
@@ -112,7 +135,9 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     let edt = euclidean_squared(&empty, true);
     let open = opening(&chess);
     lap("distance and opening maps", &mut timings);
-    let (complex, _) = curvilinear_skeleton(&empty, settings.constraint);
+    let anchor_voxels: Vec<Option<usize>> = settings.anchors.iter().map(|a| nearest_empty_voxel(&empty, a)).collect();
+    let anchors: Vec<usize> = anchor_voxels.iter().flatten().copied().collect();
+    let (complex, _) = curvilinear_skeleton(&empty, settings.constraint, &anchors);
     lap("thinning (Alg. 2-3, piercing)", &mut timings);
     let skeleton = SkeletonGraph::from_complex(&complex, &spec, &empty, &edt);
     let filtered = skeleton.filtered();
@@ -122,7 +147,48 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     let labelling = opening_forest_labelling(&open);
     let portals = portals(&labelling);
     lap("opening-forest labels and portals", &mut timings);
-    Ok(Analysis { spec, empty, complex, skeleton, filtered, mapping, labelling, portals, enclosed, timings })
+    Ok(Analysis {
+        spec,
+        empty,
+        complex,
+        skeleton,
+        filtered,
+        mapping,
+        labelling,
+        portals,
+        anchor_voxels,
+        enclosed,
+        timings,
+    })
+}
+
+/// The empty voxel whose centre is nearest to the anchor, on its side, within
+/// [`ANCHOR_REACH`] voxels.
+fn nearest_empty_voxel(empty: &Grid<bool>, anchor: &Anchor) -> Option<usize> {
+    let spec = &empty.spec;
+    let p = anchor.position;
+    let centre = [0, 1, 2].map(|a| ((p[a] - spec.origin[a]) / spec.voxel - 0.5).round() as i64);
+    let mut best: Option<(f64, usize)> = None;
+    for dz in -ANCHOR_REACH..=ANCHOR_REACH {
+        for dy in -ANCHOR_REACH..=ANCHOR_REACH {
+            for dx in -ANCHOR_REACH..=ANCHOR_REACH {
+                let v = [centre[0] + dx, centre[1] + dy, centre[2] + dz];
+                if (0..3).any(|a| v[a] < 0 || v[a] >= spec.dims[a] as i64) {
+                    continue;
+                }
+                let (x, y, z) = (v[0] as usize, v[1] as usize, v[2] as usize);
+                let i = spec.index(x, y, z);
+                let c = spec.center(x, y, z);
+                let d = [c[0] - p[0], c[1] - p[1], c[2] - p[2]];
+                let on_side = d[0] * anchor.side[0] + d[1] * anchor.side[1] + d[2] * anchor.side[2] >= 0.0;
+                let dist = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if empty.data[i] && on_side && best.is_none_or(|(b, _)| dist < b) {
+                    best = Some((dist, i));
+                }
+            }
+        }
+    }
+    best.map(|(_, i)| i)
 }
 
 /// The empty voxels joined to the grid's border by 6-paths of empty voxels.
@@ -203,6 +269,29 @@ mod tests {
         assert!(alone.filtered.components() >= 2, "room and shell");
         let inverted = Some([[1.0; 3], [0.0; 3]]);
         assert!(analyse(&room, &AnalysisSettings { region: inverted, ..at(16) }).is_err());
+    }
+
+    /// A light under the ceiling, anchored on its emitting side: the skeleton gains a node
+    /// next to it; an anchor far outside the grid resolves to nothing.
+    #[test]
+    fn anchors_pull_the_skeleton_to_lights() {
+        let room = closed_box(0.0, 1.0);
+        let light = Anchor { position: [0.5, 0.4, 0.999], side: [0.0, 0.0, -1.0] };
+        let lost = Anchor { position: [50.0, 0.0, 0.0], side: [0.0; 3] };
+        let settings = AnalysisSettings { anchors: vec![light, lost], ..at(24) };
+        let a = analyse(&room, &settings).unwrap();
+        assert!(a.anchor_voxels[0].is_some() && a.anchor_voxels[1].is_none());
+        let near = |g: &SkeletonGraph| {
+            g.nodes
+                .iter()
+                .map(|n| (0..3).map(|k| (n.position[k] - light.position[k]).powi(2)).sum::<f64>().sqrt())
+                .fold(f64::INFINITY, f64::min)
+        };
+        let plain = analyse(&room, &at(24)).unwrap();
+        let voxel = a.spec.voxel;
+        assert!(near(&a.skeleton) < 2.5 * voxel, "{} voxels away", near(&a.skeleton) / voxel);
+        assert!(near(&plain.skeleton) > 4.0 * voxel, "{} voxels away", near(&plain.skeleton) / voxel);
+        assert_eq!(a.skeleton.components(), plain.skeleton.components());
     }
 
     #[test]

@@ -188,8 +188,9 @@ pub enum EdgeConstraint {
     ReleasedCode,
 }
 
-/// The curvilinear skeleton of the voxel set `set` (Alg. 3 and §6.2.4). Returns the
-/// skeleton and the dates of the unconstrained thinning of the set.
+/// The curvilinear skeleton of the voxel set `set` (Alg. 3 and §6.2.4), reaching the voxels
+/// of `anchors` (linear indices; those outside the set are ignored). Returns the skeleton
+/// and the dates of the unconstrained thinning of the set.
 ///
 /// Faces that the unconstrained thinning never removes have an infinite lifespan; on a
 /// curvilinear object they are its cycles, which no collapse can break, but around a
@@ -198,21 +199,27 @@ pub enum EdgeConstraint {
 /// once pierced, so the constraint set W takes only edges of finite lifespan. Surface parts
 /// left after thinning are pierced, one square each, and the thinning resumes, until only
 /// curves remain; a surface around k cavities needs k rounds.
-pub fn curvilinear_skeleton(set: &Grid<bool>, constraint: EdgeConstraint) -> (Complex, Dates) {
-    let (mut skeleton, dates, keep) = constraint_set(set, constraint);
+pub fn curvilinear_skeleton(set: &Grid<bool>, constraint: EdgeConstraint, anchors: &[usize]) -> (Complex, Dates) {
+    let (mut skeleton, dates, keep) = constraint_set(set, constraint, anchors);
     thin_keeping(&mut skeleton, &keep);
     (skeleton, dates)
 }
 
 /// The complex of `set`, the dates of its unconstrained thinning, and Alg. 3's constraint
-/// set W (see [`edge_constraint`]).
-pub fn constraint_set(set: &Grid<bool>, constraint: EdgeConstraint) -> (Complex, Dates, Vec<bool>) {
+/// set W (see [`edge_constraint`]) with a corner of each voxel of `anchors` added: the
+/// skeleton then reaches every anchor (seed 001 §3.2 puts the lights and the camera there).
+pub fn constraint_set(set: &Grid<bool>, constraint: EdgeConstraint, anchors: &[usize]) -> (Complex, Dates, Vec<bool>) {
     let distance = l1(set, true);
     let opening = l1_opening(&distance);
     let complex = Complex::from_voxels(set);
     let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
     par_dir_collapse(&mut complex.clone(), None, u32::MAX, Some(&mut dates));
-    let keep = edge_constraint(&complex, &dates, &distance, &opening, constraint);
+    let mut keep = edge_constraint(&complex, &dates, &distance, &opening, constraint);
+    let [w, h, _] = set.spec.dims;
+    for &v in anchors.iter().filter(|&&v| set.data[v]) {
+        let (x, y, z) = (v % w, v / w % h, v / (w * h));
+        keep[complex.index([2 * x, 2 * y, 2 * z])] = true;
+    }
     (complex, dates, keep)
 }
 
@@ -414,7 +421,7 @@ mod tests {
         let set =
             set_from([24, 7, 7], 1.0, |x, y, z| (1..23).contains(&x) && (1..6).contains(&y) && (1..6).contains(&z));
         for constraint in [EdgeConstraint::Thesis, EdgeConstraint::ReleasedCode] {
-            let (s, _) = curvilinear_skeleton(&set, constraint);
+            let (s, _) = curvilinear_skeleton(&set, constraint, &[]);
             assert!(s.is_curvilinear(), "{constraint:?}: {:?}", s.face_counts());
             assert_eq!(betti(&s), (1, 0, 0));
             let pts: Vec<[usize; 3]> = (0..s.cells.len()).filter(|&i| s.cells[i]).map(|i| s.coords(i)).collect();
@@ -438,7 +445,7 @@ mod tests {
             let arm_y = (1..6).contains(&x) && (1..19).contains(&y);
             z_ok && (arm_x || arm_y)
         });
-        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis);
+        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]);
         assert!(s.is_curvilinear());
         assert_eq!(betti(&s), (1, 0, 0));
         let pts: Vec<[usize; 3]> = (0..s.cells.len()).filter(|&i| s.cells[i]).map(|i| s.coords(i)).collect();
@@ -450,7 +457,7 @@ mod tests {
     #[test]
     fn two_rooms_and_an_ajar_door_give_two_parts_joined_through_the_gap() {
         let set = two_rooms_and_a_gap(1.0);
-        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis);
+        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]);
         assert!(s.is_curvilinear());
         assert_eq!(betti(&s), (1, 0, 0));
         let pts: Vec<[usize; 3]> = (0..s.cells.len()).filter(|&i| s.cells[i]).map(|i| s.coords(i)).collect();
@@ -471,7 +478,7 @@ mod tests {
         });
         let x = Complex::from_voxels(&set);
         assert_eq!(betti(&x), (1, 0, 1), "the light makes a cavity");
-        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis);
+        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]);
         assert!(s.is_curvilinear(), "{:?}", s.face_counts());
         assert_eq!(betti(&s).0, 1);
         assert_eq!(betti(&s).2, 0);
@@ -492,7 +499,7 @@ mod tests {
         ];
         for (i, set) in shapes.iter().enumerate() {
             for constraint in [EdgeConstraint::Thesis, EdgeConstraint::ReleasedCode] {
-                let (mut x, _, keep) = constraint_set(set, constraint);
+                let (mut x, _, keep) = constraint_set(set, constraint, &[]);
                 thin_keeping(&mut x, &keep);
                 assert!(x.is_curvilinear(), "shape {i}");
                 let once = x.clone();
@@ -504,6 +511,24 @@ mod tests {
         }
     }
 
+    /// An anchor in a corner of a corridor's end gets a branch of its own: the skeleton
+    /// reaches it, stays connected and curvilinear.
+    #[test]
+    fn an_anchor_pulls_a_branch_to_itself() {
+        let set =
+            set_from([24, 7, 7], 1.0, |x, y, z| (1..23).contains(&x) && (1..6).contains(&y) && (1..6).contains(&z));
+        let corner = set.spec.index(21, 1, 1);
+        let reaches = |s: &Complex| s.cells[s.index([42, 2, 2])];
+        let (plain, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]);
+        assert!(!reaches(&plain));
+        let (anchored, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[corner]);
+        assert!(reaches(&anchored) && anchored.is_curvilinear());
+        assert_eq!(betti(&anchored), (1, 0, 0));
+        // An anchor outside the set changes nothing.
+        let (outside, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[set.spec.index(0, 0, 0)]);
+        assert_eq!(outside, plain);
+    }
+
     /// A square ring of corridor gives exactly one cycle.
     #[test]
     fn a_ring_corridor_gives_one_cycle() {
@@ -513,7 +538,7 @@ mod tests {
             outer && !hole
         });
         for constraint in [EdgeConstraint::Thesis, EdgeConstraint::ReleasedCode] {
-            let (s, _) = curvilinear_skeleton(&set, constraint);
+            let (s, _) = curvilinear_skeleton(&set, constraint, &[]);
             assert!(s.is_curvilinear(), "{constraint:?}: {:?}", s.face_counts());
             assert_eq!(betti(&s), (1, 1, 0), "{constraint:?}");
         }
