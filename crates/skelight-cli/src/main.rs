@@ -18,7 +18,7 @@ use skelight::integrator::bpt::Bpt;
 use skelight::integrator::mis::Heuristic;
 use skelight::integrator::{self, RenderOptions};
 use skelight::scene::{self, Scene};
-use skelight_shape::pipeline::AnalysisSettings;
+use skelight_shape::pipeline::{AnalysisSettings, Resolution};
 use skelight_shape::thinning::EdgeConstraint;
 
 #[derive(Parser)]
@@ -53,9 +53,10 @@ enum Command {
     Skeleton {
         /// Scene file. Omit for the embedded default scene.
         scene: Option<PathBuf>,
-        /// Voxels on the longest side of the scene's box (grown by 10 %).
-        #[arg(long, default_value_t = 128)]
-        resolution: usize,
+        /// Voxels on the longest side of the scene's box (grown by 10 %), or the grid's exact
+        /// dimensions W,H,D (cubic voxels, the box centred).
+        #[arg(long, default_value = "128", value_parser = parse_grid_resolution)]
+        resolution: Resolution,
         /// Alg. 3's edge constraint: thesis (lifespan > DC + birth − D) or released-code
         /// (lifespan > DC + birth).
         #[arg(long, default_value = "thesis", value_parser = parse_constraint)]
@@ -180,8 +181,9 @@ enum BenchKind {
     /// Time per stage and peak memory of the empty-space analysis (best of --runs).
     Skeleton {
         scene: PathBuf,
-        #[arg(long, default_value_t = 128)]
-        resolution: usize,
+        /// As `skelight skeleton --resolution`: N or W,H,D.
+        #[arg(long, default_value = "128", value_parser = parse_grid_resolution)]
+        resolution: Resolution,
         /// As `skelight skeleton --bounds`.
         #[arg(long, value_parser = parse_box)]
         bounds: Option<[[f64; 3]; 2]>,
@@ -281,6 +283,16 @@ fn parse_constraint(s: &str) -> Result<EdgeConstraint, String> {
         "thesis" => Ok(EdgeConstraint::Thesis),
         "released-code" => Ok(EdgeConstraint::ReleasedCode),
         _ => Err(format!("unknown constraint '{s}'; use thesis or released-code")),
+    }
+}
+
+fn parse_grid_resolution(s: &str) -> Result<Resolution, String> {
+    let v: Vec<usize> =
+        s.split(',').map(|t| t.trim().parse::<usize>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
+    match v[..] {
+        [n] => Ok(Resolution::Longest(n)),
+        [w, h, d] => Ok(Resolution::Dims([w, h, d])),
+        _ => Err("expected N (voxels on the longest side) or W,H,D".into()),
     }
 }
 

@@ -37,6 +37,10 @@ pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) 
     write("skeleton.ply", &graph_ply(&a.skeleton))?;
     write("skeleton_filtered.ply", &graph_ply(&a.filtered))?;
     write("portals.json", &portals_json(&a))?;
+    write("portals.obj", &portals_obj(&a))?;
+    write_grid(&dir.join("mapping_filtered.u32"), &a.mapping.grid.data)?;
+    write_grid(&dir.join("labels.u32"), &a.labelling.labels.data)?;
+    write("grids.json", &grids_json(&a))?;
     let mut report = String::new();
     let [w, h, d] = a.spec.dims;
     let _ = writeln!(report, "grid {w}×{h}×{d}, voxel {:.4}, origin {:?}", a.spec.voxel, a.spec.origin);
@@ -141,6 +145,59 @@ fn graph_ply(g: &SkeletonGraph) -> String {
     }
     for [a, b] in &g.edges {
         let _ = writeln!(s, "{a} {b}");
+    }
+    s
+}
+
+/// A grid as raw little-endian u32 values, x fastest, then y, then z.
+fn write_grid(path: &Path, values: &[u32]) -> Result<()> {
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    skelight::imageio::write_file_atomically(path, &bytes)
+        .map_err(anyhow::Error::msg)
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Where the raw grids sit in the world and what their values mean.
+fn grids_json(a: &Analysis) -> String {
+    let [w, h, d] = a.spec.dims;
+    let [ox, oy, oz] = a.spec.origin;
+    format!(
+        "{{\"dims\": [{w}, {h}, {d}], \"origin\": [{ox}, {oy}, {oz}], \"voxel\": {},\n \"layout\": \"little-endian u32, x fastest, then y, then z; voxel (x, y, z) spans origin + voxel * [x, x+1] (and so on)\",\n \"mapping_filtered.u32\": \"index + 1 of the node of skeleton_filtered.json each empty voxel maps to (Alg. 5); 0 for scene voxels\",\n \"labels.u32\": \"opening-forest region of each empty voxel, 1..{}; 0 for scene voxels\"}}\n",
+        a.spec.voxel, a.labelling.count
+    )
+}
+
+/// Every portal as an OBJ object of quads, one per 2-face between its regions.
+fn portals_obj(a: &Analysis) -> String {
+    let spec = &a.spec;
+    let [w, h, _] = spec.dims;
+    let mut s = String::from("# opening portals: one object per pair of regions, one quad per face\n");
+    let mut vertices = 0;
+    for p in &a.portals {
+        let _ = writeln!(s, "o portal_{}_{}", p.from, p.to);
+        for &(v, axis) in &p.squares {
+            let cell = [v % w, v / w % h, v / (w * h)];
+            let axis = axis as usize;
+            let (u, t) = ((axis + 1) % 3, (axis + 2) % 3);
+            for (du, dt) in [(0, 0), (1, 0), (1, 1), (0, 1)] {
+                let mut q = [0.0; 3];
+                for k in 0..3 {
+                    let step = if k == axis {
+                        1
+                    } else if k == u {
+                        du
+                    } else if k == t {
+                        dt
+                    } else {
+                        0
+                    };
+                    q[k] = spec.origin[k] + (cell[k] + step) as f64 * spec.voxel;
+                }
+                let _ = writeln!(s, "v {} {} {}", q[0], q[1], q[2]);
+            }
+            let _ = writeln!(s, "f {} {} {} {}", vertices + 1, vertices + 2, vertices + 3, vertices + 4);
+            vertices += 4;
+        }
     }
     s
 }

@@ -114,6 +114,24 @@ fn skeleton_writes_graphs_portals_a_report_and_pictures() {
     for f in ["skeleton.json", "skeleton_filtered.json", "skeleton.ply", "skeleton_filtered.ply", "portals.json"] {
         assert!(d.join(f).exists(), "{f} missing");
     }
+    // Raw grids, described by grids.json; portals as OBJ quads.
+    let grids = std::fs::read_to_string(d.join("grids.json")).unwrap();
+    let dims: Vec<usize> = grids
+        .split('[')
+        .nth(1)
+        .unwrap()
+        .split(']')
+        .next()
+        .unwrap()
+        .split(',')
+        .map(|v| v.trim().parse().unwrap())
+        .collect();
+    for f in ["mapping_filtered.u32", "labels.u32"] {
+        let len = std::fs::metadata(d.join(f)).unwrap().len() as usize;
+        assert_eq!(len, 4 * dims.iter().product::<usize>(), "{f}");
+    }
+    let obj = std::fs::read_to_string(d.join("portals.obj")).unwrap();
+    assert!(obj.contains("o portal_") && obj.contains("\nf "));
     // Pictures through the scene's camera: the skeleton drawn in its yellow or blue, the
     // two rooms' surfaces mapped to several nodes and regions.
     let distinct = |name: &str| {

@@ -43,6 +43,29 @@ impl GridSpec {
         Ok(spec)
     }
 
+    /// Grid of exactly `dims` cubic voxels over `min`–`max` grown by `margin`, the voxel as
+    /// small as lets the box fit, the box centred in the grid.
+    pub fn from_bounds_dims(
+        min: [f64; 3],
+        max: [f64; 3],
+        dims: [usize; 3],
+        margin: f64,
+    ) -> Result<GridSpec, GridError> {
+        if dims.contains(&0) {
+            return Err(GridError::ZeroResolution);
+        }
+        let ext: Vec<f64> = (0..3).map(|i| max[i] - min[i]).collect();
+        if ext.iter().any(|e| !(e.is_finite() && *e >= 0.0)) || ext.iter().all(|e| *e == 0.0) {
+            return Err(GridError::EmptyBounds);
+        }
+        let grow = ext.iter().cloned().fold(0.0, f64::max) * margin;
+        let voxel = (0..3).map(|i| (ext[i] + 2.0 * grow) / dims[i] as f64).fold(0.0, f64::max);
+        let origin = [0, 1, 2].map(|i| min[i] - grow - (dims[i] as f64 * voxel - ext[i] - 2.0 * grow) * 0.5);
+        let spec = GridSpec { origin, voxel, dims };
+        spec.check_memory(1)?;
+        Ok(spec)
+    }
+
     /// Refuses grids whose `bytes_per_voxel` storage would exceed [`MAX_GRID_BYTES`], before
     /// anything is allocated.
     pub fn check_memory(&self, bytes_per_voxel: u64) -> Result<(), GridError> {
@@ -126,5 +149,10 @@ mod tests {
         assert_eq!(GridSpec::from_bounds([0.0; 3], [0.0; 3], 8, 0.1), Err(GridError::EmptyBounds));
         assert_eq!(GridSpec::from_bounds([0.0; 3], [1.0; 3], 0, 0.1), Err(GridError::ZeroResolution));
         assert!(matches!(GridSpec::from_bounds([0.0; 3], [1.0; 3], 100_000, 0.1), Err(GridError::TooLarge(..))));
+        // Explicit dimensions: the tightest axis sets the voxel, the others are centred.
+        let s = GridSpec::from_bounds_dims([0.0; 3], [10.0, 5.0, 2.0], [40, 40, 40], 0.0).unwrap();
+        assert_eq!((s.dims, s.voxel), ([40, 40, 40], 0.25));
+        assert!((s.origin[1] + 2.5).abs() < 1e-12 && s.origin[0] == 0.0);
+        assert_eq!(GridSpec::from_bounds_dims([0.0; 3], [1.0; 3], [4, 0, 4], 0.0), Err(GridError::ZeroResolution));
     }
 }

@@ -63,11 +63,17 @@ pub struct Anchor {
 /// How far, in voxels, an anchor may lie from the empty voxel that stands for it.
 pub const ANCHOR_REACH: i64 = 4;
 
+/// The grid's size: voxels on the longest side (the seeds' way), or exact dimensions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Resolution {
+    Longest(usize),
+    Dims([usize; 3]),
+}
+
 /// What to analyse and how finely.
 #[derive(Clone, Debug)]
 pub struct AnalysisSettings {
-    /// Voxels on the longest side of the grid.
-    pub resolution: usize,
+    pub resolution: Resolution,
     pub constraint: EdgeConstraint,
     /// The box to analyse, `[min, max]`; `None` for the scene's bounds grown by 10 % (the
     /// seeds' set-up). A scene inside a huge ground plane or sky needs its building's box.
@@ -83,7 +89,7 @@ pub struct AnalysisSettings {
 impl Default for AnalysisSettings {
     fn default() -> Self {
         AnalysisSettings {
-            resolution: 128,
+            resolution: Resolution::Longest(128),
             constraint: EdgeConstraint::Thesis,
             region: None,
             enclosed_only: false,
@@ -110,9 +116,13 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     if !lo[0].is_finite() {
         return Err(AnalysisError::NoTriangles);
     }
-    let spec = match settings.region {
-        Some([min, max]) => GridSpec::from_bounds(min, max, settings.resolution, 0.0)?,
-        None => GridSpec::from_bounds(lo, hi, settings.resolution, 0.05)?,
+    let ([min, max], margin) = match settings.region {
+        Some(region) => (region, 0.0),
+        None => ([lo, hi], 0.05),
+    };
+    let spec = match settings.resolution {
+        Resolution::Longest(n) => GridSpec::from_bounds(min, max, n, margin)?,
+        Resolution::Dims(dims) => GridSpec::from_bounds_dims(min, max, dims, margin)?,
     };
     spec.check_memory(BYTES_PER_VOXEL)?;
     let mut empty = empty_space(&voxelize(&spec, triangles));
@@ -221,7 +231,7 @@ mod tests {
     use super::*;
 
     fn at(resolution: usize) -> AnalysisSettings {
-        AnalysisSettings { resolution, ..Default::default() }
+        AnalysisSettings { resolution: Resolution::Longest(resolution), ..Default::default() }
     }
 
     /// A closed box of 12 triangles: one room, a connected skeleton inside it.

@@ -11,6 +11,9 @@ use crate::labeling::{Labelling, NO_LABEL};
 pub struct Portal {
     pub from: u32,
     pub to: u32,
+    /// Its 2-faces, each as the linear index of the voxel on its lower side and the axis
+    /// it faces along (the other voxel is one step up that axis).
+    pub squares: Vec<(usize, u8)>,
     /// Number of 2-faces.
     pub faces: usize,
     /// World-space area.
@@ -25,6 +28,7 @@ pub struct Portal {
 /// Running sums over one portal's faces.
 #[derive(Default)]
 struct FaceSums {
+    squares: Vec<(usize, u8)>,
     faces: usize,
     centres: [f64; 3],
     normals: [f64; 3],
@@ -55,6 +59,7 @@ pub fn portals(l: &Labelling) -> Vec<Portal> {
             let (from, to, sign) = if a < b { (a, b, 1.0) } else { (b, a, -1.0) };
             let e = acc.entry((from, to)).or_default();
             e.faces += 1;
+            e.squares.push((i, axis as u8));
             for (k, sum) in e.centres.iter_mut().enumerate() {
                 *sum += c[k] + if k == axis { 0.5 * spec.voxel } else { 0.0 };
             }
@@ -63,12 +68,13 @@ pub fn portals(l: &Labelling) -> Vec<Portal> {
     }
     let face_area = spec.voxel * spec.voxel;
     acc.into_iter()
-        .map(|((from, to), FaceSums { faces, centres: sum_c, normals: sum_n })| {
+        .map(|((from, to), FaceSums { squares, faces, centres: sum_c, normals: sum_n })| {
             let len = (sum_n[0] * sum_n[0] + sum_n[1] * sum_n[1] + sum_n[2] * sum_n[2]).sqrt();
             let normal = if len > 0.0 { sum_n.map(|v| v / len) } else { [0.0; 3] };
             Portal {
                 from,
                 to,
+                squares,
                 faces,
                 area: faces as f64 * face_area,
                 centroid: sum_c.map(|v| v / faces as f64),
@@ -116,6 +122,13 @@ mod tests {
             assert!((p.centroid[0] - 4.25).abs() <= 0.5 + 1e-9, "portal off the wall: {p:?}");
             assert!(p.normal[0].abs() > 0.99, "{p:?}");
             assert_eq!(p.area, p.faces as f64 * 0.25);
+            assert_eq!(p.squares.len(), p.faces);
+            // Each square separates a voxel of one region from a voxel of the other.
+            for &(v, axis) in &p.squares {
+                let step = [1, 17, 17 * 9][axis as usize];
+                let pair = [l.labels.data[v], l.labels.data[v + step]];
+                assert!(pair == [p.from, p.to] || pair == [p.to, p.from], "{pair:?}");
+            }
         }
         assert_eq!(l.count as usize, 2 + ps.len() - 1);
     }
