@@ -1,6 +1,6 @@
 //! Vectors, affine transforms and orthonormal frames (single precision, like the renderer).
 
-use std::ops::{Add, AddAssign, Div, Index, Mul, MulAssign, Neg, Sub};
+use std::ops::{Add, AddAssign, Div, Index, IndexMut, Mul, MulAssign, Neg, Sub};
 
 pub const PI: f32 = std::f32::consts::PI;
 pub const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
@@ -148,6 +148,17 @@ impl Index<usize> for Vec3 {
             0 => &self.x,
             1 => &self.y,
             _ => &self.z,
+        }
+    }
+}
+
+impl IndexMut<usize> for Vec3 {
+    #[inline]
+    fn index_mut(&mut self, i: usize) -> &mut f32 {
+        match i {
+            0 => &mut self.x,
+            1 => &mut self.y,
+            _ => &mut self.z,
         }
     }
 }

@@ -1,6 +1,8 @@
-//! Bounding volume hierarchy: binned-SAH build (parallel over subtrees), flat 32-byte nodes
-//! with the two children of a node side by side in one 64-byte cache line,
-//! triangles stored in leaf order so a leaf is one contiguous read.
+//! Bounding volume hierarchy: a binary binned-SAH build (parallel over subtrees), collapsed
+//! into 4-wide nodes whose child boxes are stored axis by axis (structure of arrays), so one
+//! node visit tests four boxes in the same instructions (the compiler maps the lane loops to
+//! SIMD) and the tree has half the levels of a binary one. Triangles are stored in leaf
+//! order, so a leaf is one contiguous read.
 
 use super::{intersect_triangle, Accelerator, BuildTriangle, Hit, HitFilter, Ray, RayPrecomp};
 use crate::math::{Aabb, Vec3};
@@ -11,15 +13,21 @@ const TRAVERSAL_COST: f32 = 1.0;
 const PARALLEL_THRESHOLD: usize = 4096;
 const MASKED_BIT: u32 = 1 << 31;
 
+/// A child slot that holds nothing.
+const EMPTY: u32 = 0;
+/// A child slot that holds an interior node (other values are a leaf's triangle count).
+const INTERIOR: u32 = u32::MAX;
+
+/// Four children: their boxes axis by axis, then what each is. 128 bytes, two cache lines.
 #[derive(Clone, Copy, Debug)]
-#[repr(C)]
-struct Node {
-    min: Vec3,
-    /// Interior: index of the first child (the second is `offset + 1`). Leaf: first triangle.
-    offset: u32,
-    max: Vec3,
-    /// Number of triangles; 0 for interior nodes.
-    count: u32,
+#[repr(C, align(64))]
+struct Node4 {
+    min: [[f32; 4]; 3],
+    max: [[f32; 4]; 3],
+    /// Interior child: node index. Leaf child: first triangle.
+    child: [u32; 4],
+    /// [`EMPTY`], [`INTERIOR`], or the leaf's number of triangles.
+    kind: [u32; 4],
 }
 
 /// Shape of a built hierarchy, for benchmarks and tests.
@@ -32,26 +40,13 @@ pub struct BvhStats {
 }
 
 pub struct Bvh {
-    /// Node pairs, 64-byte aligned: node i is `nodes[i / 2].0[i % 2]`. The root is node 0
-    /// (its partner, node 1, is unused) so that every sibling pair starts a cache line.
-    nodes: Vec<NodePair>,
+    nodes: Vec<Node4>,
+    /// What the root is: (child, kind) as in a node's slot.
+    root: (u32, u32),
     tris: Vec<[Vec3; 3]>,
     /// Global triangle index per leaf slot; the top bit marks alpha-masked triangles.
     prim_ids: Vec<u32>,
     bounds: Aabb,
-}
-
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(64))]
-struct NodePair([Node; 2]);
-
-const EMPTY_NODE: Node = Node { min: Vec3::ZERO, offset: 0, max: Vec3::ZERO, count: 0 };
-
-impl Bvh {
-    #[inline(always)]
-    fn node(&self, i: usize) -> &Node {
-        &self.nodes[i >> 1].0[i & 1]
-    }
 }
 
 enum BuildNode {
@@ -68,50 +63,76 @@ struct PrimRef {
 
 impl Bvh {
     pub fn build(triangles: &[BuildTriangle]) -> Bvh {
-        let mut refs: Vec<PrimRef> = triangles
-            .iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let b = t.bounds();
-                PrimRef { bounds: b, centroid: b.center(), index: i as u32 }
-            })
-            .collect();
+        let mut refs = split_large_references(triangles);
         let root = if refs.is_empty() {
             BuildNode::Leaf { bounds: Aabb::EMPTY, start: 0, count: 0 }
         } else {
             build_recursive(&mut refs, 0)
         };
-        let mut flat = vec![EMPTY_NODE, EMPTY_NODE];
-        flat[0] = leaf_or_placeholder(&root);
-        flatten_children(&root, 0, &mut flat);
-        let nodes = flat.chunks(2).map(|c| NodePair([c[0], *c.get(1).unwrap_or(&EMPTY_NODE)])).collect();
+        let mut nodes = Vec::new();
+        let root_slot = match &root {
+            BuildNode::Leaf { start, count, .. } => (*start as u32, *count as u32),
+            BuildNode::Interior { .. } => (collapse(&root, &mut nodes), INTERIOR),
+        };
         let tris = refs.iter().map(|r| triangles[r.index as usize].v).collect();
         let prim_ids =
             refs.iter().map(|r| r.index | if triangles[r.index as usize].masked { MASKED_BIT } else { 0 }).collect();
-        let bounds = match &root {
-            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => *bounds,
-        };
-        Bvh { nodes, tris, prim_ids, bounds }
+        let bounds = node_bounds(&root);
+        Bvh { nodes, root: root_slot, tris, prim_ids, bounds }
     }
 
     pub fn stats(&self) -> BvhStats {
-        let mut s = BvhStats { nodes: 2 * self.nodes.len() - 1, ..Default::default() };
+        let mut s = BvhStats { nodes: self.nodes.len(), ..Default::default() };
         let root_area = self.bounds.half_area().max(1e-30);
-        let mut stack = vec![(0usize, 1usize)];
+        if self.root.1 != INTERIOR {
+            s.leaves = 1;
+            s.sah_cost = self.root.1 as f32;
+            return s;
+        }
+        s.sah_cost = TRAVERSAL_COST;
+        let mut stack = vec![(self.root.0 as usize, 1usize)];
         while let Some((i, depth)) = stack.pop() {
-            let n = self.node(i);
-            let area = Aabb { min: n.min, max: n.max }.half_area() / root_area;
+            let n = &self.nodes[i];
             s.max_depth = s.max_depth.max(depth);
-            if n.count > 0 {
-                s.leaves += 1;
-                s.sah_cost += area * n.count as f32;
-            } else {
-                s.sah_cost += area * TRAVERSAL_COST;
-                stack.push((n.offset as usize, depth + 1));
-                stack.push((n.offset as usize + 1, depth + 1));
+            for k in 0..4 {
+                let b = Aabb {
+                    min: crate::math::vec3(n.min[0][k], n.min[1][k], n.min[2][k]),
+                    max: crate::math::vec3(n.max[0][k], n.max[1][k], n.max[2][k]),
+                };
+                match n.kind[k] {
+                    EMPTY => {}
+                    INTERIOR => {
+                        s.sah_cost += b.half_area() / root_area * TRAVERSAL_COST;
+                        stack.push((n.child[k] as usize, depth + 1));
+                    }
+                    count => {
+                        s.leaves += 1;
+                        s.sah_cost += b.half_area() / root_area * count as f32;
+                    }
+                }
             }
         }
         s
+    }
+
+    /// Starts loading a child the ray will visit, so that the memory latency overlaps with
+    /// the work on its nearer siblings.
+    #[inline(always)]
+    fn prefetch(&self, child: u32, kind: u32) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let p: *const i8 = if kind == INTERIOR {
+                self.nodes.as_ptr().wrapping_add(child as usize).cast()
+            } else {
+                self.tris.as_ptr().wrapping_add(child as usize).cast()
+            };
+            // SAFETY: prefetching never faults, whatever the address.
+            unsafe {
+                _mm_prefetch(p, _MM_HINT_T0);
+                _mm_prefetch(p.wrapping_add(64), _MM_HINT_T0);
+            }
+        }
     }
 
     #[inline]
@@ -120,17 +141,48 @@ impl Bvh {
             return None;
         }
         let pre = RayPrecomp::new(ray);
+        let origin = [ray.o.x, ray.o.y, ray.o.z];
+        let inv_d = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
         let mut best: Option<Hit> = None;
         let mut tmax = ray.tmax;
-        let mut stack = [0u32; 64];
+        // Pending subtrees with the distance at which the ray enters them.
+        let mut stack = [(0u32, 0u32, 0f32); 96];
         let mut sp = 0usize;
-        let mut node_index = 0usize;
-        slab(self.node(0), ray.o, pre.inv_d, tmax)?;
+        let (mut child, mut kind) = self.root;
         loop {
-            let node = self.node(node_index);
-            if node.count > 0 {
-                let start = node.offset as usize;
-                for i in start..start + node.count as usize {
+            if kind == INTERIOR {
+                let node = &self.nodes[child as usize];
+                let tnear = slab4(node, origin, inv_d, tmax);
+                // The children hit, nearest first (at most four: insertion sort).
+                let mut order = [(0u32, 0u32, 0f32); 4];
+                let mut hits = 0;
+                for (k, &t) in tnear.iter().enumerate() {
+                    if node.kind[k] == EMPTY || t == f32::INFINITY {
+                        continue;
+                    }
+                    let entry = (node.child[k], node.kind[k], t);
+                    self.prefetch(entry.0, entry.1);
+                    let mut j = hits;
+                    while j > 0 && order[j - 1].2 > entry.2 {
+                        order[j] = order[j - 1];
+                        j -= 1;
+                    }
+                    order[j] = entry;
+                    hits += 1;
+                }
+                if hits > 0 {
+                    for &entry in order[1..hits].iter().rev() {
+                        if sp < stack.len() {
+                            stack[sp] = entry;
+                            sp += 1;
+                        }
+                    }
+                    (child, kind) = (order[0].0, order[0].1);
+                    continue;
+                }
+            } else {
+                let start = child as usize;
+                for i in start..start + kind as usize {
                     if let Some((t, b1, b2)) = intersect_triangle(ray, &pre, &self.tris[i], tmax) {
                         let id = self.prim_ids[i];
                         let prim = id & !MASKED_BIT;
@@ -145,39 +197,20 @@ impl Bvh {
                         best = Some(hit);
                     }
                 }
-            } else {
-                let a = node.offset as usize;
-                let b = a + 1;
-                let ta = slab(self.node(a), ray.o, pre.inv_d, tmax);
-                let tb = slab(self.node(b), ray.o, pre.inv_d, tmax);
-                match (ta, tb) {
-                    (Some(ta), Some(tb)) => {
-                        let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
-                        if sp < stack.len() {
-                            stack[sp] = far as u32;
-                            sp += 1;
-                        }
-                        node_index = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        node_index = a;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node_index = b;
-                        continue;
-                    }
-                    (None, None) => {}
+            }
+            // Next: the nearest pending subtree the ray still enters before tmax.
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                let (c, k, t) = stack[sp];
+                if t <= tmax {
+                    (child, kind) = (c, k);
+                    break;
                 }
             }
-            if sp == 0 {
-                break;
-            }
-            sp -= 1;
-            node_index = stack[sp] as usize;
         }
-        best
     }
 }
 
@@ -193,6 +226,7 @@ impl Accelerator for Bvh {
     }
 }
 
+#[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
 fn fmin(a: f32, b: f32) -> f32 {
     if a < b {
@@ -202,6 +236,7 @@ fn fmin(a: f32, b: f32) -> f32 {
     }
 }
 
+#[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
 fn fmax(a: f32, b: f32) -> f32 {
     if a > b {
@@ -211,24 +246,178 @@ fn fmax(a: f32, b: f32) -> f32 {
     }
 }
 
-/// Entry distance of the ray into the node's box, if it enters before `tmax`.
-/// `inv_d` is finite (see `RayPrecomp`), so no operand here is NaN.
+/// Entry distances of the ray into the four child boxes of `n`, `INFINITY` for the boxes it
+/// misses or enters after `tmax`. Boxes are widened by a few ulps so that flat ones
+/// (axis-aligned walls) are not missed.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn slab(n: &Node, o: Vec3, inv_d: Vec3, tmax: f32) -> Option<f32> {
-    let tx1 = (n.min.x - o.x) * inv_d.x;
-    let tx2 = (n.max.x - o.x) * inv_d.x;
-    let ty1 = (n.min.y - o.y) * inv_d.y;
-    let ty2 = (n.max.y - o.y) * inv_d.y;
-    let tz1 = (n.min.z - o.z) * inv_d.z;
-    let tz2 = (n.max.z - o.z) * inv_d.z;
-    let tnear = fmax(fmax(fmax(fmin(tx1, tx2), fmin(ty1, ty2)), fmin(tz1, tz2)), 0.0);
-    let tfar = fmin(fmin(fmin(fmax(tx1, tx2), fmax(ty1, ty2)), fmax(tz1, tz2)), tmax);
-    // Widen by a few ulps so that flat boxes (axis-aligned walls) are not missed.
-    if tnear <= tfar * 1.000_000_4 {
-        Some(tnear)
-    } else {
-        None
+fn slab4(n: &Node4, o: [f32; 3], inv_d: [f32; 3], tmax: f32) -> [f32; 4] {
+    use std::arch::x86_64::*;
+    // SAFETY: SSE is part of the x86_64 baseline; `Node4` is 64-byte aligned and its rows
+    // are 16 bytes each, so the aligned loads are in bounds and aligned.
+    unsafe {
+        let mut tnear = _mm_setzero_ps();
+        let mut tfar = _mm_set1_ps(tmax);
+        for a in 0..3 {
+            let (oa, ia) = (_mm_set1_ps(o[a]), _mm_set1_ps(inv_d[a]));
+            let t1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.min[a].as_ptr()), oa), ia);
+            let t2 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.max[a].as_ptr()), oa), ia);
+            tnear = _mm_max_ps(tnear, _mm_min_ps(t1, t2));
+            tfar = _mm_min_ps(tfar, _mm_max_ps(t1, t2));
+        }
+        let hit = _mm_cmple_ps(tnear, _mm_mul_ps(tfar, _mm_set1_ps(1.000_000_4)));
+        let out = _mm_or_ps(_mm_and_ps(hit, tnear), _mm_andnot_ps(hit, _mm_set1_ps(f32::INFINITY)));
+        let mut r = [0.0f32; 4];
+        _mm_storeu_ps(r.as_mut_ptr(), out);
+        r
     }
+}
+
+/// Portable form of the x86_64 version above.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn slab4(n: &Node4, o: [f32; 3], inv_d: [f32; 3], tmax: f32) -> [f32; 4] {
+    let mut tnear = [0.0f32; 4];
+    let mut tfar = [tmax; 4];
+    for a in 0..3 {
+        for k in 0..4 {
+            let t1 = (n.min[a][k] - o[a]) * inv_d[a];
+            let t2 = (n.max[a][k] - o[a]) * inv_d[a];
+            tnear[k] = fmax(tnear[k], fmin(t1, t2));
+            tfar[k] = fmin(tfar[k], fmax(t1, t2));
+        }
+    }
+    std::array::from_fn(|k| if tnear[k] <= tfar[k] * 1.000_000_4 { tnear[k] } else { f32::INFINITY })
+}
+
+/// Extra references the pre-split may add, as a fraction of the triangle count.
+const SPLIT_BUDGET: f32 = 0.5;
+/// A reference is split while its box is larger than this many times the mean box...
+const SPLIT_THRESHOLD: f32 = 4.0;
+/// ... and its box's half surface is more than this many times the area of the triangle
+/// part inside it: boxes mostly empty, not flat walls (whose ratio is 1 to 2), which split
+/// into many flat boxes of the same total area for nothing.
+const SPLIT_EMPTINESS: f32 = 3.0;
+
+/// One reference per triangle, then the largest boxes split in two at the middle of their
+/// longest side, each half bounding exactly the part of the triangle inside it ("early split
+/// clipping", Ernst & Greiner 2007), largest first, within [`SPLIT_BUDGET`], while they are
+/// mostly empty. Long thin or
+/// large diagonal triangles (a cathedral's vaults, a door frame) otherwise have boxes full
+/// of empty space that overlap everything around them. A triangle may then sit in several
+/// leaves; each finds the same hit.
+fn split_large_references(triangles: &[BuildTriangle]) -> Vec<PrimRef> {
+    let mut refs: Vec<PrimRef> = triangles
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let b = t.bounds();
+            PrimRef { bounds: b, centroid: b.center(), index: i as u32 }
+        })
+        .collect();
+    if refs.is_empty() {
+        return refs;
+    }
+    let mean = refs.iter().map(|r| r.bounds.half_area() as f64).sum::<f64>() / refs.len() as f64;
+    let threshold = (mean * SPLIT_THRESHOLD as f64) as f32;
+    let budget = (triangles.len() as f32 * SPLIT_BUDGET) as usize;
+    let worth_splitting = |b: &Aabb, area: f32| b.half_area() > threshold && b.half_area() > SPLIT_EMPTINESS * area;
+    let mut heap: std::collections::BinaryHeap<(OrderedArea, usize)> = refs
+        .iter()
+        .enumerate()
+        .filter(|(i, r)| worth_splitting(&r.bounds, triangle_area(&triangles[*i].v)))
+        .map(|(i, r)| (OrderedArea(r.bounds.half_area()), i))
+        .collect();
+    // The cell of each reference: the split planes that cut it out of its triangle. Its box
+    // is the triangle clipped to the cell; clipping against that rounded box again, rather
+    // than against the exact planes, would shave slivers off nearly flat triangles.
+    let everywhere = Aabb { min: Vec3::splat(f32::NEG_INFINITY), max: Vec3::splat(f32::INFINITY) };
+    let mut cells = vec![everywhere; refs.len()];
+    let mut added = 0;
+    while let Some((_, i)) = heap.pop() {
+        if added >= budget {
+            break;
+        }
+        let r = refs[i];
+        let axis = r.bounds.extent().max_axis();
+        let mid = 0.5 * (r.bounds.min[axis] + r.bounds.max[axis]);
+        let (mut lo, mut hi) = (cells[i], cells[i]);
+        lo.max[axis] = mid;
+        hi.min[axis] = mid;
+        let v = &triangles[r.index as usize].v;
+        let (Some((a, area_a)), Some((b, area_b))) = (clipped(v, &lo), clipped(v, &hi)) else { continue };
+        refs[i] = PrimRef { bounds: a, centroid: a.center(), index: r.index };
+        cells[i] = lo;
+        refs.push(PrimRef { bounds: b, centroid: b.center(), index: r.index });
+        cells.push(hi);
+        added += 1;
+        for (j, area) in [(i, area_a), (refs.len() - 1, area_b)] {
+            if worth_splitting(&refs[j].bounds, area) {
+                heap.push((OrderedArea(refs[j].bounds.half_area()), j));
+            }
+        }
+    }
+    refs
+}
+
+/// A box area ordered for the split heap.
+#[derive(Clone, Copy, PartialEq)]
+struct OrderedArea(f32);
+impl Eq for OrderedArea {}
+impl PartialOrd for OrderedArea {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for OrderedArea {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&o.0)
+    }
+}
+
+fn triangle_area(v: &[Vec3; 3]) -> f32 {
+    0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length()
+}
+
+/// Bounds and area of the part of triangle `v` inside `clip` (Sutherland–Hodgman against
+/// the box's six planes), `None` if nothing of it is inside.
+fn clipped(v: &[Vec3; 3], clip: &Aabb) -> Option<(Aabb, f32)> {
+    let mut poly: Vec<Vec3> = v.to_vec();
+    for axis in 0..3 {
+        for (plane, keep_below) in [(clip.min[axis], false), (clip.max[axis], true)] {
+            let inside = |p: &Vec3| if keep_below { p[axis] <= plane } else { p[axis] >= plane };
+            let mut out = Vec::with_capacity(poly.len() + 2);
+            for k in 0..poly.len() {
+                let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+                if inside(&a) {
+                    out.push(a);
+                }
+                if inside(&a) != inside(&b) {
+                    let t = (plane - a[axis]) / (b[axis] - a[axis]);
+                    let mut p = a + (b - a) * t;
+                    p[axis] = plane;
+                    out.push(p);
+                }
+            }
+            poly = out;
+            if poly.is_empty() {
+                return None;
+            }
+        }
+    }
+    let mut b = Aabb::EMPTY;
+    poly.iter().for_each(|&p| b.grow(p));
+    // Never larger than the clip box (rounding in the intersection points).
+    for a in 0..3 {
+        b.min[a] = b.min[a].max(clip.min[a]);
+        b.max[a] = b.max[a].min(clip.max[a]);
+    }
+    // A convex polygon's area: half the length of the sum of its edges' cross products.
+    let mut twice = Vec3::ZERO;
+    for k in 1..poly.len().saturating_sub(1) {
+        twice += (poly[k] - poly[0]).cross(poly[k + 1] - poly[0]);
+    }
+    Some((b, 0.5 * twice.length()))
 }
 
 fn bounds_of(refs: &[PrimRef]) -> (Aabb, Aabb) {
@@ -344,26 +533,47 @@ fn partition(refs: &mut [PrimRef], pred: impl Fn(&PrimRef) -> bool) -> usize {
     i
 }
 
-/// The flat node for `node`: complete for leaves; interior nodes get their child offset
-/// from `flatten_children`.
-fn leaf_or_placeholder(node: &BuildNode) -> Node {
-    match node {
-        BuildNode::Leaf { bounds, start, count } => {
-            Node { min: bounds.min, offset: *start as u32, max: bounds.max, count: *count as u32 }
-        }
-        BuildNode::Interior { bounds, .. } => Node { min: bounds.min, offset: 0, max: bounds.max, count: 0 },
+/// Writes the 4-wide node for the binary interior node `node` (and its subtree) into
+/// `out`; returns its index. The node takes up to four descendants: starting from the two
+/// children, the interior one with the largest surface is replaced by its own two children
+/// until there are four, which is the SAH-greedy way to flatten two levels into one.
+fn collapse(node: &BuildNode, out: &mut Vec<Node4>) -> u32 {
+    let BuildNode::Interior { children, .. } = node else { unreachable!("collapse starts at interior nodes") };
+    let mut slots: Vec<&BuildNode> = vec![&children[0], &children[1]];
+    while slots.len() < 4 {
+        let widest = slots
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| matches!(n, BuildNode::Interior { .. }))
+            .max_by(|a, b| node_bounds(a.1).half_area().total_cmp(&node_bounds(b.1).half_area()))
+            .map(|(i, _)| i);
+        let Some(i) = widest else { break };
+        let BuildNode::Interior { children, .. } = slots.remove(i) else { unreachable!() };
+        slots.insert(i, &children[1]);
+        slots.insert(i, &children[0]);
     }
+    let index = out.len();
+    out.push(Node4 { min: [[0.0; 4]; 3], max: [[0.0; 4]; 3], child: [0; 4], kind: [EMPTY; 4] });
+    for (k, slot) in slots.into_iter().enumerate() {
+        let b = node_bounds(slot);
+        for a in 0..3 {
+            out[index].min[a][k] = b.min[a];
+            out[index].max[a][k] = b.max[a];
+        }
+        let (child, kind) = match slot {
+            BuildNode::Leaf { start, count, .. } => (*start as u32, *count as u32),
+            interior => (collapse(interior, out), INTERIOR),
+        };
+        out[index].child[k] = child;
+        out[index].kind[k] = kind;
+    }
+    index as u32
 }
 
-/// Writes the children of the interior node at `index` as an adjacent pair, depth first.
-fn flatten_children(node: &BuildNode, index: usize, out: &mut Vec<Node>) {
-    let BuildNode::Interior { children, .. } = node else { return };
-    let first = out.len();
-    out.push(leaf_or_placeholder(&children[0]));
-    out.push(leaf_or_placeholder(&children[1]));
-    out[index].offset = first as u32;
-    flatten_children(&children[0], first, out);
-    flatten_children(&children[1], first + 1, out);
+fn node_bounds(node: &BuildNode) -> Aabb {
+    match node {
+        BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => *bounds,
+    }
 }
 
 #[cfg(test)]
@@ -373,11 +583,18 @@ mod tests {
     use crate::math::vec3;
     use crate::sampling::{uniform_sphere, Rng};
 
-    fn random_soup(n: usize, rng: &mut Rng) -> Vec<BuildTriangle> {
+    /// Small triangles in a 10-unit box, and every tenth one up to `large` units across (the
+    /// long slivers and large diagonal faces the pre-split cuts up), half of those nearly
+    /// flat (a few ulps of z), as a slightly uneven floor or vault.
+    fn random_soup(n: usize, large: f32, rng: &mut Rng) -> Vec<BuildTriangle> {
         (0..n)
-            .map(|_| {
+            .map(|i| {
                 let c = vec3(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
-                let v = [0, 1, 2].map(|_| c + vec3(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5));
+                let size = if i % 10 == 0 { large } else { 1.0 };
+                let flat = if i % 20 == 0 { 2e-7 } else { 1.0 };
+                let v = [0, 1, 2].map(|_| {
+                    c + vec3(rng.next_f32() - 0.5, rng.next_f32() - 0.5, (rng.next_f32() - 0.5) * flat) * size
+                });
                 BuildTriangle { v, masked: false }
             })
             .collect()
@@ -387,11 +604,16 @@ mod tests {
     #[test]
     fn matches_brute_force() {
         let mut rng = Rng::new(5, 0, 0);
-        let tris = random_soup(5000, &mut rng);
-        let bvh = Bvh::build(&tris);
+        for large in [1.0, 12.0] {
+            matches_brute_force_on(&random_soup(5000, large, &mut rng), &mut rng);
+        }
+    }
+
+    fn matches_brute_force_on(tris: &[BuildTriangle], rng: &mut Rng) {
+        let bvh = Bvh::build(tris);
         let stats = bvh.stats();
         assert!(stats.leaves > 100 && stats.max_depth < 64);
-        for _ in 0..2000 {
+        for _ in 0..4000 {
             let o = vec3(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 12.0 - Vec3::splat(1.0);
             let ray = Ray::new(o, uniform_sphere(rng.next_2d()));
             let pre = RayPrecomp::new(&ray);
