@@ -12,8 +12,8 @@ use skelight::scene::Scene;
 use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings, Anchor};
 use skelight_shape::skeleton::SkeletonGraph;
 
-/// Runs the analysis of `scene` at `resolution` voxels on the longest side and writes its
-/// outputs into `dir`.
+/// Runs the analysis of `scene` with `settings` and writes its outputs into `dir`, with
+/// warnings for anchors it could not place and for scenes that enclose nothing.
 pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) -> Result<Analysis> {
     let a = analyse(&scene_triangles(scene), settings).context("empty-space analysis")?;
     for (anchor, voxel) in settings.anchors.iter().zip(&a.anchor_voxels) {
@@ -162,7 +162,7 @@ fn grids_json(a: &Analysis) -> String {
     let [w, h, d] = a.spec.dims;
     let [ox, oy, oz] = a.spec.origin;
     format!(
-        "{{\"dims\": [{w}, {h}, {d}], \"origin\": [{ox}, {oy}, {oz}], \"voxel\": {},\n \"layout\": \"little-endian u32, x fastest, then y, then z; voxel (x, y, z) spans origin + voxel * [x, x+1] (and so on)\",\n \"mapping_filtered.u32\": \"index + 1 of the node of skeleton_filtered.json each empty voxel maps to (Alg. 5); 0 for scene voxels\",\n \"labels.u32\": \"opening-forest region of each empty voxel, 1..{}; 0 for scene voxels\"}}\n",
+        "{{\"dims\": [{w}, {h}, {d}], \"origin\": [{ox}, {oy}, {oz}], \"voxel\": {},\n \"layout\": \"little-endian u32, x fastest, then y, then z; voxel (x, y, z) spans origin + voxel * [x, x+1] (and so on)\",\n \"mapping_filtered.u32\": \"index + 1 of the node of skeleton_filtered.json each empty voxel maps to (Alg. 5); 0 for scene voxels and for empty pockets no node reaches\",\n \"labels.u32\": \"opening-forest region of each empty voxel, 1..{}; 0 for scene voxels\"}}\n",
         a.spec.voxel, a.labelling.count
     )
 }
