@@ -81,7 +81,7 @@ pub enum AnchorKind {
 /// Anchors for the scene's lights (an area light's centroid, on the side it faces; point
 /// and spot lights' positions; distant lights have no place) and its camera.
 pub fn anchors(scene: &Scene, kinds: &[AnchorKind]) -> Vec<Anchor> {
-    let f = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
+    let f = to_f64;
     let mut out = Vec::new();
     if kinds.contains(&AnchorKind::Lights) {
         for light in &scene.lights {
@@ -111,9 +111,14 @@ pub fn anchors(scene: &Scene, kinds: &[AnchorKind]) -> Vec<Anchor> {
     out
 }
 
+/// A renderer vector as the shape analysis takes points.
+pub fn to_f64(v: Vec3) -> [f64; 3] {
+    [v.x as f64, v.y as f64, v.z as f64]
+}
+
 /// The scene's triangles as the analysis takes them.
 pub fn scene_triangles(scene: &Scene) -> Vec<[[f64; 3]; 3]> {
-    scene.build_triangles().iter().map(|t| t.v.map(|p| [p.x as f64, p.y as f64, p.z as f64])).collect()
+    scene.build_triangles().iter().map(|t| t.v.map(to_f64)).collect()
 }
 
 fn graph_json(g: &SkeletonGraph) -> String {
@@ -170,13 +175,12 @@ fn grids_json(a: &Analysis) -> String {
 /// Every portal as an OBJ object of quads, one per 2-face between its regions.
 fn portals_obj(a: &Analysis) -> String {
     let spec = &a.spec;
-    let [w, h, _] = spec.dims;
     let mut s = String::from("# opening portals: one object per pair of regions, one quad per face\n");
     let mut vertices = 0;
     for p in &a.portals {
         let _ = writeln!(s, "o portal_{}_{}", p.from, p.to);
         for &(v, axis) in &p.squares {
-            let cell = [v % w, v / w % h, v / (w * h)];
+            let cell = spec.coords(v);
             let axis = axis as usize;
             let (u, t) = ((axis + 1) % 3, (axis + 2) % 3);
             for (du, dt) in [(0, 0), (1, 0), (1, 1), (0, 1)] {

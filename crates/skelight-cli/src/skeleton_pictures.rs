@@ -19,6 +19,8 @@ use skelight_shape::mapping::{surface_voxel, NodeMapping};
 use skelight_shape::pipeline::Analysis;
 use skelight_shape::skeleton::SkeletonGraph;
 
+use crate::skeleton::to_f64;
+
 /// Writes the pictures of the analysis `a` of `scene`, seen through its camera at its
 /// current resolution, into `dir`. Returns the files written.
 pub fn write(scene: &Scene, a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
@@ -42,20 +44,16 @@ pub fn write(scene: &Scene, a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
     save("skeleton_filtered_view.png", &with_skeleton(scene, &backdrop, &a.filtered))?;
     let full_mapping = NodeMapping::new(&a.skeleton, &a.empty);
     for (name, mapping) in [("mapping.png", &full_mapping), ("mapping_filtered.png", &a.mapping)] {
-        let img = false_colours(w, h, &hits, |si| mapping.node_at(point(si.p), point(si.ng), point(si.wi)));
+        let img = false_colours(w, h, &hits, |si| mapping.node_at(to_f64(si.p), to_f64(si.ng), to_f64(si.wi)));
         save(name, &img)?;
     }
     let labels = &a.labelling.labels;
     let img = false_colours(w, h, &hits, |si| {
         let labelled = |v: usize| labels.data[v] != 0;
-        surface_voxel(&labels.spec, labelled, point(si.p), point(si.ng), point(si.wi)).map(|v| labels.data[v])
+        surface_voxel(&labels.spec, labelled, to_f64(si.p), to_f64(si.ng), to_f64(si.wi)).map(|v| labels.data[v])
     });
     save("labels.png", &img)?;
     Ok(written)
-}
-
-fn point(v: Vec3) -> [f64; 3] {
-    [v.x as f64, v.y as f64, v.z as f64]
 }
 
 /// Surface points of the primary hits coloured by the label `label_of` gives them, shaded by

@@ -134,21 +134,31 @@ fn skeleton_writes_graphs_portals_a_report_and_pictures() {
     assert!(obj.contains("o portal_") && obj.contains("\nf "));
     // Pictures through the scene's camera: the skeleton drawn in its yellow or blue, the
     // two rooms' surfaces mapped to several nodes and regions.
+    // Distinct hues: colour divided by its largest channel, so shading and the three
+    // brightness levels do not count, and greys (unmapped points, the backdrop) are left out.
     let distinct = |name: &str| {
         let img = Image::load(&d.join(name)).unwrap();
         assert_eq!(img.width.max(img.height), 160, "{name}");
-        let mut colours: Vec<[u32; 3]> =
-            img.pixels.iter().map(|p| [p.r, p.g, p.b].map(|c| (c * 64.0) as u32)).collect();
-        colours.sort_unstable();
-        colours.dedup();
-        (img, colours.len())
+        let mut hues: Vec<[u32; 3]> = img
+            .pixels
+            .iter()
+            .map(|p| [p.r, p.g, p.b])
+            .filter(|c| c.iter().cloned().fold(0.0, f32::max) - c.iter().cloned().fold(1.0, f32::min) > 0.1)
+            .map(|c| {
+                let top = c.iter().cloned().fold(0.0, f32::max);
+                c.map(|v| (v / top * 8.0).round() as u32)
+            })
+            .collect();
+        hues.sort_unstable();
+        hues.dedup();
+        (img, hues.len())
     };
     let (view, _) = distinct("skeleton_view.png");
     // PNG values as stored (sRGB): the yellow (1, 0.8, 0.05) reads about (1, 0.91, 0.25).
     assert!(view.pixels.iter().any(|p| p.r > 0.9 && p.g > 0.75 && p.b < 0.4), "no yellow skeleton drawn");
     for name in ["mapping_filtered.png", "mapping.png", "labels.png"] {
         let (_, n) = distinct(name);
-        assert!(n >= 8, "{name}: {n} colours");
+        assert!(n >= 3, "{name}: {n} hues");
     }
     // Anchored at the light and the camera: both placed, reported.
     let a = d.join("anchored");

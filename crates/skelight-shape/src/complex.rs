@@ -67,33 +67,31 @@ impl Complex {
 
     /// Faces of dimension one more that contain face `i` (inside the grid), with the axis
     /// and sign of the step: `(index, axis, +1 / −1)`.
-    pub fn cofaces(&self, i: usize) -> Steps {
+    pub fn cofaces(&self, i: usize) -> Few<Step, 6> {
         self.steps(i, 0)
     }
 
     /// Faces of dimension one less contained in face `i`, as `(index, axis, sign)`.
-    pub fn facets(&self, i: usize) -> Steps {
+    pub fn facets(&self, i: usize) -> Few<Step, 6> {
         self.steps(i, 1)
     }
 
     /// Neighbours at ±1 along the axes where face `i`'s coordinate has the given parity,
     /// gathered in a fixed array (this sits in the innermost loop of the thinning).
     #[inline]
-    fn steps(&self, i: usize, parity: usize) -> Steps {
+    fn steps(&self, i: usize, parity: usize) -> Few<Step, 6> {
         let p = self.coords(i);
         let stride = [1, self.dims[0], self.dims[0] * self.dims[1]];
-        let mut out = Steps { items: [(0, 0, 0); 6], len: 0, next: 0 };
+        let mut out = Few::new((0, 0, 0));
         for a in 0..3 {
             if p[a] & 1 != parity {
                 continue;
             }
             if p[a] > 0 {
-                out.items[out.len] = (i - stride[a], a, -1);
-                out.len += 1;
+                out.push((i - stride[a], a, -1));
             }
             if p[a] + 1 < self.dims[a] {
-                out.items[out.len] = (i + stride[a], a, 1);
-                out.len += 1;
+                out.push((i + stride[a], a, 1));
             }
         }
         out
@@ -151,23 +149,27 @@ impl Complex {
         count
     }
 
-    /// Linear indices, in the voxel grid, of the voxels (3-faces) that contain face `i`.
-    pub fn voxels_around(&self, i: usize) -> Vec<usize> {
+    /// Linear indices, in the voxel grid, of the voxels (3-faces) that contain face `i`
+    /// (at most eight; no allocation, as the constraint set asks this of every edge).
+    pub fn voxels_around(&self, i: usize) -> Few<usize, 8> {
         let p = self.coords(i);
         let [w, h, d] = self.dims.map(|n| (n - 1) / 2);
         // Along each axis, an odd coordinate 2a+1 lies in voxel a; an even one 2a in a−1 and a.
-        let options = |c: usize, n: usize| -> Vec<usize> {
+        let options = |c: usize, n: usize| -> Few<usize, 2> {
+            let mut o = Few::new(0);
             if c & 1 == 1 {
-                vec![c / 2]
+                o.push(c / 2);
             } else {
-                [c / 2, c / 2 + 1].into_iter().filter(|&v| v >= 1 && v <= n).map(|v| v - 1).collect()
+                for v in [c / 2, c / 2 + 1].into_iter().filter(|&v| v >= 1 && v <= n) {
+                    o.push(v - 1);
+                }
             }
+            o
         };
-        let (xs, ys, zs) = (options(p[0], w), options(p[1], h), options(p[2], d));
-        let mut out = Vec::new();
-        for &z in &zs {
-            for &y in &ys {
-                for &vx in &xs {
+        let mut out = Few::new(0);
+        for z in options(p[2], d) {
+            for y in options(p[1], h) {
+                for vx in options(p[0], w) {
                     out.push((z * h + y) * w + vx);
                 }
             }
@@ -182,18 +184,33 @@ impl Complex {
     }
 }
 
-/// Up to six neighbouring faces `(index, axis, sign)` of a face, one step away in the
-/// doubled grid.
-pub struct Steps {
-    items: [(usize, usize, i8); 6],
+/// A neighbouring face one step away in the doubled grid: `(index, axis, sign)`.
+pub type Step = (usize, usize, i8);
+
+/// At most `N` values in a fixed array, iterated in order: the neighbour lists of the
+/// thinning's inner loops, without a heap allocation each.
+#[derive(Clone, Copy, Debug)]
+pub struct Few<T: Copy, const N: usize> {
+    items: [T; N],
     len: usize,
     next: usize,
 }
 
-impl Iterator for Steps {
-    type Item = (usize, usize, i8);
+impl<T: Copy, const N: usize> Few<T, N> {
+    fn new(fill: T) -> Self {
+        Few { items: [fill; N], len: 0, next: 0 }
+    }
     #[inline]
-    fn next(&mut self) -> Option<Self::Item> {
+    fn push(&mut self, v: T) {
+        self.items[self.len] = v;
+        self.len += 1;
+    }
+}
+
+impl<T: Copy, const N: usize> Iterator for Few<T, N> {
+    type Item = T;
+    #[inline]
+    fn next(&mut self) -> Option<T> {
         let item = self.items[..self.len].get(self.next).copied();
         self.next += 1;
         item

@@ -87,6 +87,25 @@ impl GridSpec {
     pub fn index(&self, x: usize, y: usize, z: usize) -> usize {
         (z * self.dims[1] + y) * self.dims[0] + x
     }
+    /// Grid coordinates of the voxel with linear index `i`.
+    #[inline]
+    pub fn coords(&self, i: usize) -> [usize; 3] {
+        let [nx, ny, _] = self.dims;
+        [i % nx, (i / nx) % ny, i / (nx * ny)]
+    }
+    /// The voxel `d` steps from `v`, if it lies inside the grid.
+    #[inline]
+    pub fn offset(&self, v: [usize; 3], d: [i64; 3]) -> Option<[usize; 3]> {
+        let mut u = [0; 3];
+        for a in 0..3 {
+            let c = v[a] as i64 + d[a];
+            if c < 0 || c >= self.dims[a] as i64 {
+                return None;
+            }
+            u[a] = c as usize;
+        }
+        Some(u)
+    }
     /// World position of a voxel's centre.
     pub fn center(&self, x: usize, y: usize, z: usize) -> [f64; 3] {
         let c = [x, y, z];

@@ -86,7 +86,7 @@ pub fn surface_voxel(
         }
         // Step to the neighbour nearest the normal's direction, labelled or not.
         let step = n.map(|c| (c * std::f64::consts::SQRT_2).round() as i64);
-        v = offset(spec, v, step)?;
+        v = spec.offset(v, step)?;
     }
     None
 }
@@ -102,7 +102,7 @@ fn best_neighbour(spec: &GridSpec, labelled: &impl Fn(usize) -> bool, v: [usize;
                 if (dx, dy, dz) == (0, 0, 0) {
                     continue;
                 }
-                let Some(u) = offset(spec, v, [dx, dy, dz]) else { continue };
+                let Some(u) = spec.offset(v, [dx, dy, dz]) else { continue };
                 let u = spec.index(u[0], u[1], u[2]);
                 if !labelled(u) {
                     continue;
@@ -130,18 +130,6 @@ pub fn voxel_of(spec: &GridSpec, point: [f64; 3]) -> Option<[usize; 3]> {
         v[a] = (t.floor().max(0.0) as usize).min(spec.dims[a] - 1);
     }
     Some(v)
-}
-
-fn offset(spec: &GridSpec, v: [usize; 3], d: [i64; 3]) -> Option<[usize; 3]> {
-    let mut u = [0; 3];
-    for a in 0..3 {
-        let c = v[a] as i64 + d[a];
-        if c < 0 || c >= spec.dims[a] as i64 {
-            return None;
-        }
-        u[a] = c as usize;
-    }
-    Some(u)
 }
 
 #[cfg(test)]

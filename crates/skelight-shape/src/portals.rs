@@ -45,7 +45,7 @@ pub fn portals(l: &Labelling) -> Vec<Portal> {
         if a == NO_LABEL {
             continue;
         }
-        let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+        let [x, y, z] = spec.coords(i);
         let c = spec.center(x, y, z);
         // Each face once: towards +x, +y, +z.
         let [nx_, ny_, nz_] = spec.dims;

@@ -34,12 +34,13 @@ impl SkeletonGraph {
                 continue;
             }
             // The empty voxel around the vertex farthest from the scene.
-            let best = x
-                .voxels_around(i)
-                .into_iter()
-                .filter(|&v| empty.data[v])
-                .map(|v| (edt.data[v], v))
-                .reduce(|a, b| if b.0 > a.0 { b } else { a });
+            let best = x.voxels_around(i).filter(|&v| empty.data[v]).map(|v| (edt.data[v], v)).reduce(|a, b| {
+                if b.0 > a.0 {
+                    b
+                } else {
+                    a
+                }
+            });
             let Some((d2, voxel)) = best else { continue };
             *node = graph.nodes.len() as u32;
             let p = x.coords(i);

@@ -215,10 +215,8 @@ pub fn constraint_set(set: &Grid<bool>, constraint: EdgeConstraint, anchors: &[u
     let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
     par_dir_collapse(&mut complex.clone(), None, u32::MAX, Some(&mut dates));
     let mut keep = edge_constraint(&complex, &dates, &distance, &opening, constraint);
-    let [w, h, _] = set.spec.dims;
     for &v in anchors.iter().filter(|&&v| set.data[v]) {
-        let (x, y, z) = (v % w, v / w % h, v / (w * h));
-        keep[complex.index([2 * x, 2 * y, 2 * z])] = true;
+        keep[complex.index(set.spec.coords(v).map(|c| 2 * c))] = true;
     }
     (complex, dates, keep)
 }
@@ -270,7 +268,7 @@ pub fn edge_constraint(
     // W must be a complex: keep the kept edges' vertices too.
     for e in 0..x.cells.len() {
         if keep[e] && x.dim(e) == 1 {
-            for (v, _, _) in x.facets(e).collect::<Vec<_>>() {
+            for (v, _, _) in x.facets(e) {
                 keep[v] = true;
             }
         }
