@@ -1,33 +1,44 @@
 //! Bounding volume hierarchy: a binary binned-SAH build (parallel over subtrees), collapsed
-//! into 4-wide nodes whose child boxes are stored axis by axis (structure of arrays), so one
-//! node visit tests four boxes in the same instructions (the compiler maps the lane loops to
-//! SIMD) and the tree has half the levels of a binary one. Triangles are stored in leaf
-//! order, so a leaf is one contiguous read.
+//! into 8-wide nodes whose child boxes are stored axis by axis (structure of arrays), so one
+//! node visit tests eight boxes in a few AVX instructions (two SSE halves without AVX) and
+//! the tree has a third of the levels of a binary one. Leaf triangles are packed four to a
+//! block in leaf order and tested four at once, so a leaf is one or two contiguous reads.
+//! Incoherent rays spend most of their time waiting on memory; the traversal therefore
+//! prefetches every child it will visit and avoids unpredictable branches (hit children
+//! come out of the box test as a bit mask).
 
-use super::{intersect_triangle, Accelerator, BuildTriangle, Hit, HitFilter, Ray, RayPrecomp};
+use super::triangle::{intersect4, Triangle4};
+use super::{Accelerator, BuildTriangle, Hit, HitFilter, Ray, RayPrecomp};
 use crate::math::{Aabb, Vec3};
+use std::mem::MaybeUninit;
 
 const BINS: usize = 16;
 const MAX_LEAF: usize = 8;
+/// SAH costs, in units of one four-triangle block test.
 const TRAVERSAL_COST: f32 = 1.0;
+const BLOCK_COST: f32 = 1.0;
 const PARALLEL_THRESHOLD: usize = 4096;
 const MASKED_BIT: u32 = 1 << 31;
 
 /// A child slot that holds nothing.
 const EMPTY: u32 = 0;
-/// A child slot that holds an interior node (other values are a leaf's triangle count).
+/// A child slot that holds an interior node (other values are a leaf's number of
+/// four-triangle blocks).
 const INTERIOR: u32 = u32::MAX;
 
-/// Four children: their boxes axis by axis, then what each is. 128 bytes, two cache lines.
+/// Children per node.
+const WIDTH: usize = 8;
+
+/// Eight children: their boxes axis by axis, then what each is. 256 bytes, four cache lines.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-struct Node4 {
-    min: [[f32; 4]; 3],
-    max: [[f32; 4]; 3],
-    /// Interior child: node index. Leaf child: first triangle.
-    child: [u32; 4],
-    /// [`EMPTY`], [`INTERIOR`], or the leaf's number of triangles.
-    kind: [u32; 4],
+struct Node {
+    min: [[f32; WIDTH]; 3],
+    max: [[f32; WIDTH]; 3],
+    /// Interior child: node index. Leaf child: its first block of four triangles.
+    child: [u32; WIDTH],
+    /// [`EMPTY`], [`INTERIOR`], or the leaf's number of blocks.
+    kind: [u32; WIDTH],
 }
 
 /// Shape of a built hierarchy, for benchmarks and tests.
@@ -40,14 +51,26 @@ pub struct BvhStats {
 }
 
 pub struct Bvh {
-    nodes: Vec<Node4>,
+    nodes: Vec<Node>,
     /// What the root is: (child, kind) as in a node's slot.
     root: (u32, u32),
-    tris: Vec<[Vec3; 3]>,
-    /// Global triangle index per leaf slot; the top bit marks alpha-masked triangles.
-    prim_ids: Vec<u32>,
+    /// Leaf triangles in blocks of four, each leaf a run of blocks.
+    blocks: Vec<Triangle4>,
+    /// Global triangle index per block lane; the top bit marks alpha-masked triangles.
+    prim_ids: Vec<[u32; 4]>,
     bounds: Aabb,
+    /// Traversal stack entries the deepest path can need.
+    stack_need: usize,
+    /// Whether this CPU has AVX: the eight boxes of a node are then tested in one go.
+    #[cfg(target_arch = "x86_64")]
+    avx: bool,
 }
+
+/// Traversal stack kept on the program stack; deeper trees get one on the heap.
+const STACK: usize = 256;
+
+/// A pending subtree: (child, kind) as in a node's slot, and the ray's entry distance.
+type StackEntry = (u32, u32, f32);
 
 enum BuildNode {
     Leaf { bounds: Aabb, start: usize, count: usize },
@@ -69,16 +92,24 @@ impl Bvh {
         } else {
             build_recursive(&mut refs, 0)
         };
-        let mut nodes = Vec::new();
-        let root_slot = match &root {
-            BuildNode::Leaf { start, count, .. } => (*start as u32, *count as u32),
-            BuildNode::Interior { .. } => (collapse(&root, &mut nodes), INTERIOR),
-        };
-        let tris = refs.iter().map(|r| triangles[r.index as usize].v).collect();
-        let prim_ids =
-            refs.iter().map(|r| r.index | if triangles[r.index as usize].masked { MASKED_BIT } else { 0 }).collect();
+        let mut out = Flattened { nodes: Vec::new(), blocks: Vec::new(), prim_ids: Vec::new(), triangles, refs: &refs };
+        let root_slot = out.slot(&root);
+        let depth = max_depth(&root);
         let bounds = node_bounds(&root);
-        Bvh { nodes, root: root_slot, tris, prim_ids, bounds }
+        let Flattened { nodes, blocks, prim_ids, .. } = out;
+        // Each level leaves at most WIDTH - 1 siblings pending.
+        #[cfg(target_arch = "x86_64")]
+        let avx = std::arch::is_x86_feature_detected!("avx");
+        Bvh {
+            nodes,
+            root: root_slot,
+            blocks,
+            prim_ids,
+            bounds,
+            stack_need: (WIDTH - 1) * depth + 1,
+            #[cfg(target_arch = "x86_64")]
+            avx,
+        }
     }
 
     pub fn stats(&self) -> BvhStats {
@@ -86,7 +117,7 @@ impl Bvh {
         let root_area = self.bounds.half_area().max(1e-30);
         if self.root.1 != INTERIOR {
             s.leaves = 1;
-            s.sah_cost = self.root.1 as f32;
+            s.sah_cost = self.root.1 as f32 * BLOCK_COST;
             return s;
         }
         s.sah_cost = TRAVERSAL_COST;
@@ -94,7 +125,7 @@ impl Bvh {
         while let Some((i, depth)) = stack.pop() {
             let n = &self.nodes[i];
             s.max_depth = s.max_depth.max(depth);
-            for k in 0..4 {
+            for k in 0..WIDTH {
                 let b = Aabb {
                     min: crate::math::vec3(n.min[0][k], n.min[1][k], n.min[2][k]),
                     max: crate::math::vec3(n.max[0][k], n.max[1][k], n.max[2][k]),
@@ -107,7 +138,7 @@ impl Bvh {
                     }
                     count => {
                         s.leaves += 1;
-                        s.sah_cost += b.half_area() / root_area * count as f32;
+                        s.sah_cost += b.half_area() / root_area * count as f32 * BLOCK_COST;
                     }
                 }
             }
@@ -122,60 +153,93 @@ impl Bvh {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let p: *const i8 = if kind == INTERIOR {
-                self.nodes.as_ptr().wrapping_add(child as usize).cast()
+            let (p, bytes): (*const i8, usize) = if kind == INTERIOR {
+                (self.nodes.as_ptr().wrapping_add(child as usize).cast(), size_of::<Node>())
             } else {
-                self.tris.as_ptr().wrapping_add(child as usize).cast()
+                (self.blocks.as_ptr().wrapping_add(child as usize).cast(), size_of::<Triangle4>())
             };
-            // SAFETY: prefetching never faults, whatever the address.
-            unsafe {
-                _mm_prefetch(p, _MM_HINT_T0);
-                _mm_prefetch(p.wrapping_add(64), _MM_HINT_T0);
+            for line in (0..bytes).step_by(64) {
+                // SAFETY: prefetching never faults, whatever the address.
+                unsafe { _mm_prefetch(p.wrapping_add(line), _MM_HINT_T0) };
             }
         }
     }
 
     #[inline]
     fn traverse<const ANY: bool>(&self, ray: &Ray, filter: &dyn HitFilter) -> Option<Hit> {
-        if self.tris.is_empty() {
+        if self.blocks.is_empty() {
             return None;
         }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: the CPU was found to support AVX when the hierarchy was built.
+            return unsafe { self.traverse_avx::<ANY>(ray, filter) };
+        }
+        self.traverse_on_stack::<ANY, false>(ray, filter)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn traverse_avx<const ANY: bool>(&self, ray: &Ray, filter: &dyn HitFilter) -> Option<Hit> {
+        self.traverse_on_stack::<ANY, true>(ray, filter)
+    }
+
+    #[inline(always)]
+    fn traverse_on_stack<const ANY: bool, const AVX: bool>(&self, ray: &Ray, filter: &dyn HitFilter) -> Option<Hit> {
+        // Left uninitialised: zeroing 2 KB per ray costs more than a shallow traversal.
+        if self.stack_need <= STACK {
+            self.traverse_with::<ANY, AVX>(ray, filter, &mut [MaybeUninit::uninit(); STACK])
+        } else {
+            self.traverse_with::<ANY, AVX>(ray, filter, &mut vec![MaybeUninit::uninit(); self.stack_need])
+        }
+    }
+
+    #[inline(always)]
+    fn traverse_with<const ANY: bool, const AVX: bool>(
+        &self,
+        ray: &Ray,
+        filter: &dyn HitFilter,
+        stack: &mut [MaybeUninit<StackEntry>],
+    ) -> Option<Hit> {
         let pre = RayPrecomp::new(ray);
         let origin = [ray.o.x, ray.o.y, ray.o.z];
         let inv_d = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
         let mut best: Option<Hit> = None;
         let mut tmax = ray.tmax;
-        // Pending subtrees with the distance at which the ray enters them.
-        let mut stack = [(0u32, 0u32, 0f32); 96];
         let mut sp = 0usize;
         let (mut child, mut kind) = self.root;
         loop {
             if kind == INTERIOR {
                 let node = &self.nodes[child as usize];
-                let tnear = slab4(node, origin, inv_d, tmax);
-                // The children hit, nearest first (at most four: insertion sort).
-                let mut order = [(0u32, 0u32, 0f32); 4];
-                let mut hits = 0;
-                for (k, &t) in tnear.iter().enumerate() {
-                    if node.kind[k] == EMPTY || t == f32::INFINITY {
+                let (tnear, mut mask) = slab(node, origin, inv_d, tmax, AVX);
+                if mask != 0 {
+                    let k = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    if mask == 0 {
+                        // One child hit, the common case: straight down, nothing to sort.
+                        (child, kind) = (node.child[k], node.kind[k]);
                         continue;
                     }
-                    let entry = (node.child[k], node.kind[k], t);
-                    self.prefetch(entry.0, entry.1);
-                    let mut j = hits;
-                    while j > 0 && order[j - 1].2 > entry.2 {
-                        order[j] = order[j - 1];
-                        j -= 1;
-                    }
-                    order[j] = entry;
-                    hits += 1;
-                }
-                if hits > 0 {
-                    for &entry in order[1..hits].iter().rev() {
-                        if sp < stack.len() {
-                            stack[sp] = entry;
-                            sp += 1;
+                    // Several: nearest first (any order for any-hit), by insertion.
+                    let mut order = [(node.child[k], node.kind[k], tnear[k]); WIDTH];
+                    self.prefetch(node.child[k], node.kind[k]);
+                    let mut hits = 1;
+                    while mask != 0 {
+                        let k = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let entry = (node.child[k], node.kind[k], tnear[k]);
+                        self.prefetch(entry.0, entry.1);
+                        let mut j = hits;
+                        while !ANY && j > 0 && order[j - 1].2 > entry.2 {
+                            order[j] = order[j - 1];
+                            j -= 1;
                         }
+                        order[j] = entry;
+                        hits += 1;
+                    }
+                    for &entry in order[1..hits].iter().rev() {
+                        stack[sp].write(entry);
+                        sp += 1;
                     }
                     (child, kind) = (order[0].0, order[0].1);
                     continue;
@@ -183,9 +247,13 @@ impl Bvh {
             } else {
                 let start = child as usize;
                 for i in start..start + kind as usize {
-                    if let Some((t, b1, b2)) = intersect_triangle(ray, &pre, &self.tris[i], tmax) {
-                        let id = self.prim_ids[i];
+                    let mut hits = intersect4(ray, &pre, &self.blocks[i], tmax);
+                    // Nearest lane first; a masked lane the filter rejects gives way to the next.
+                    while let Some(k) = hits.nearest() {
+                        hits.valid &= !(1 << k);
+                        let id = self.prim_ids[i][k];
                         let prim = id & !MASKED_BIT;
+                        let (t, b1, b2) = (hits.t[k], hits.b1[k], hits.b2[k]);
                         if id & MASKED_BIT != 0 && !filter.accept(ray, prim, b1, b2) {
                             continue;
                         }
@@ -195,6 +263,7 @@ impl Bvh {
                         }
                         tmax = t;
                         best = Some(hit);
+                        break;
                     }
                 }
             }
@@ -204,7 +273,8 @@ impl Bvh {
                     return best;
                 }
                 sp -= 1;
-                let (c, k, t) = stack[sp];
+                // SAFETY: entries below the stack pointer were written before it moved past them.
+                let (c, k, t) = unsafe { stack[sp].assume_init() };
                 if t <= tmax {
                     (child, kind) = (c, k);
                     break;
@@ -246,48 +316,104 @@ fn fmax(a: f32, b: f32) -> f32 {
     }
 }
 
-/// Entry distances of the ray into the four child boxes of `n`, `INFINITY` for the boxes it
-/// misses or enters after `tmax`. Boxes are widened by a few ulps so that flat ones
-/// (axis-aligned walls) are not missed.
+/// Entry distances of the ray into the child boxes of `n`, and a mask with bit `k` set when
+/// the ray enters box `k` before `tmax`. Boxes are widened by a few ulps so that flat ones
+/// (axis-aligned walls) are not missed; empty slots hold boxes at infinity, never entered.
+/// `avx` may be true only on a CPU with AVX.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn slab4(n: &Node4, o: [f32; 3], inv_d: [f32; 3], tmax: f32) -> [f32; 4] {
+fn slab(n: &Node, o: [f32; 3], inv_d: [f32; 3], tmax: f32, avx: bool) -> ([f32; WIDTH], u32) {
+    if avx {
+        // SAFETY: the caller has checked that the CPU supports AVX.
+        unsafe { slab8_avx(n, o, inv_d, tmax) }
+    } else {
+        let ((lo, lo_mask), (hi, hi_mask)) = (slab4_sse(n, 0, o, inv_d, tmax), slab4_sse(n, 4, o, inv_d, tmax));
+        (std::array::from_fn(|k| if k < 4 { lo[k] } else { hi[k - 4] }), lo_mask | hi_mask << 4)
+    }
+}
+
+/// The box sides a ray crosses first and last along `axis`, by the sign of its direction.
+/// (A NaN distance, from a ray in a box's plane, is ignored: the accumulated bound is the
+/// second operand of the min/max, which x86 returns when either is NaN.)
+#[inline(always)]
+fn near_far(n: &Node, axis: usize, inv_d: f32) -> (&[f32; WIDTH], &[f32; WIDTH]) {
+    if inv_d >= 0.0 {
+        (&n.min[axis], &n.max[axis])
+    } else {
+        (&n.max[axis], &n.min[axis])
+    }
+}
+
+/// All eight boxes with 256-bit instructions.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline]
+fn slab8_avx(n: &Node, o: [f32; 3], inv_d: [f32; 3], tmax: f32) -> ([f32; WIDTH], u32) {
     use std::arch::x86_64::*;
-    // SAFETY: SSE is part of the x86_64 baseline; `Node4` is 64-byte aligned and its rows
-    // are 16 bytes each, so the aligned loads are in bounds and aligned.
+    let mut tnear = _mm256_setzero_ps();
+    let mut tfar = _mm256_set1_ps(tmax);
+    for a in 0..3 {
+        let (oa, ia) = (_mm256_set1_ps(o[a]), _mm256_set1_ps(inv_d[a]));
+        // SAFETY: `Node` is 64-byte aligned and each row is 32 bytes: aligned and in bounds.
+        let (near, far) = near_far(n, a, inv_d[a]);
+        let (lo, hi) = unsafe { (_mm256_load_ps(near.as_ptr()), _mm256_load_ps(far.as_ptr())) };
+        let t1 = _mm256_mul_ps(_mm256_sub_ps(lo, oa), ia);
+        let t2 = _mm256_mul_ps(_mm256_sub_ps(hi, oa), ia);
+        tnear = _mm256_max_ps(t1, tnear);
+        tfar = _mm256_min_ps(t2, tfar);
+    }
+    let widened = _mm256_mul_ps(tfar, _mm256_set1_ps(1.000_000_4));
+    let hit = _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_LE_OQ>(tnear, widened),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(tnear, _mm256_set1_ps(f32::INFINITY)),
+    );
+    let mut r = [0.0f32; WIDTH];
+    // SAFETY: `r` holds eight floats.
+    unsafe { _mm256_storeu_ps(r.as_mut_ptr(), tnear) };
+    (r, _mm256_movemask_ps(hit) as u32)
+}
+
+/// Four boxes, from lane `first`, with SSE (part of the x86_64 baseline).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn slab4_sse(n: &Node, first: usize, o: [f32; 3], inv_d: [f32; 3], tmax: f32) -> ([f32; 4], u32) {
+    use std::arch::x86_64::*;
+    // SAFETY: SSE is part of the x86_64 baseline; `Node` is 64-byte aligned, its rows are
+    // 32 bytes and `first` is 0 or 4, so the aligned loads are in bounds and aligned.
     unsafe {
         let mut tnear = _mm_setzero_ps();
         let mut tfar = _mm_set1_ps(tmax);
         for a in 0..3 {
             let (oa, ia) = (_mm_set1_ps(o[a]), _mm_set1_ps(inv_d[a]));
-            let t1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.min[a].as_ptr()), oa), ia);
-            let t2 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.max[a].as_ptr()), oa), ia);
-            tnear = _mm_max_ps(tnear, _mm_min_ps(t1, t2));
-            tfar = _mm_min_ps(tfar, _mm_max_ps(t1, t2));
+            let (near, far) = near_far(n, a, inv_d[a]);
+            let t1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(near[first..].as_ptr()), oa), ia);
+            let t2 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(far[first..].as_ptr()), oa), ia);
+            tnear = _mm_max_ps(t1, tnear);
+            tfar = _mm_min_ps(t2, tfar);
         }
-        let hit = _mm_cmple_ps(tnear, _mm_mul_ps(tfar, _mm_set1_ps(1.000_000_4)));
-        let out = _mm_or_ps(_mm_and_ps(hit, tnear), _mm_andnot_ps(hit, _mm_set1_ps(f32::INFINITY)));
+        let widened = _mm_mul_ps(tfar, _mm_set1_ps(1.000_000_4));
+        let hit = _mm_and_ps(_mm_cmple_ps(tnear, widened), _mm_cmplt_ps(tnear, _mm_set1_ps(f32::INFINITY)));
         let mut r = [0.0f32; 4];
-        _mm_storeu_ps(r.as_mut_ptr(), out);
-        r
+        _mm_storeu_ps(r.as_mut_ptr(), tnear);
+        (r, _mm_movemask_ps(hit) as u32)
     }
 }
 
-/// Portable form of the x86_64 version above.
+/// Portable form of the x86_64 versions above.
 #[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
-fn slab4(n: &Node4, o: [f32; 3], inv_d: [f32; 3], tmax: f32) -> [f32; 4] {
-    let mut tnear = [0.0f32; 4];
-    let mut tfar = [tmax; 4];
+fn slab(n: &Node, o: [f32; 3], inv_d: [f32; 3], tmax: f32, _avx: bool) -> ([f32; WIDTH], u32) {
+    let mut tnear = [0.0f32; WIDTH];
+    let mut tfar = [tmax; WIDTH];
     for a in 0..3 {
-        for k in 0..4 {
-            let t1 = (n.min[a][k] - o[a]) * inv_d[a];
-            let t2 = (n.max[a][k] - o[a]) * inv_d[a];
-            tnear[k] = fmax(tnear[k], fmin(t1, t2));
-            tfar[k] = fmin(tfar[k], fmax(t1, t2));
+        let (near, far) = near_far(n, a, inv_d[a]);
+        for k in 0..WIDTH {
+            tnear[k] = fmax((near[k] - o[a]) * inv_d[a], tnear[k]);
+            tfar[k] = fmin((far[k] - o[a]) * inv_d[a], tfar[k]);
         }
     }
-    std::array::from_fn(|k| if tnear[k] <= tfar[k] * 1.000_000_4 { tnear[k] } else { f32::INFINITY })
+    let mask = (0..WIDTH).filter(|&k| tnear[k] <= tfar[k] * 1.000_000_4 && tnear[k] < f32::INFINITY);
+    (tnear, mask.fold(0, |m, k| m | 1 << k))
 }
 
 /// Extra references the pre-split may add, as a fraction of the triangle count.
@@ -440,7 +566,7 @@ fn build_recursive(refs: &mut [PrimRef], start: usize) -> BuildNode {
     let Some((axis, split_bin, cost)) = best_split(refs, &bounds, &cbounds) else {
         return if n <= MAX_LEAF { leaf } else { median_split(refs, start, bounds, &cbounds) };
     };
-    if cost >= n as f32 && n <= MAX_LEAF {
+    if cost >= leaf_cost(n) && n <= MAX_LEAF {
         return leaf;
     }
     let lo = cbounds.min[axis];
@@ -470,12 +596,18 @@ fn median_split(refs: &mut [PrimRef], start: usize, bounds: Aabb, cbounds: &Aabb
     split_at(refs, mid, start, bounds)
 }
 
+/// Cost of testing `n` triangles: they are tested four at a time.
+#[inline]
+fn leaf_cost(n: usize) -> f32 {
+    n.div_ceil(4) as f32 * BLOCK_COST
+}
+
 #[inline]
 fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
     (((c - lo) * scale) as usize).min(BINS - 1)
 }
 
-/// Best (axis, last bin of the left side, SAH cost in triangle-test units) over all axes.
+/// Best (axis, last bin of the left side, SAH cost) over all axes.
 fn best_split(refs: &[PrimRef], bounds: &Aabb, cbounds: &Aabb) -> Option<(usize, usize, f32)> {
     let parent_area = bounds.half_area();
     let mut best: Option<(usize, usize, f32)> = None;
@@ -512,7 +644,7 @@ fn best_split(refs: &[PrimRef], bounds: &Aabb, cbounds: &Aabb) -> Option<(usize,
                 continue;
             }
             let cost = TRAVERSAL_COST
-                + (acc.half_area() * cnt as f32 + right_area[i + 1] * right_count[i + 1] as f32)
+                + (acc.half_area() * leaf_cost(cnt) + right_area[i + 1] * leaf_cost(right_count[i + 1]))
                     / parent_area.max(1e-30);
             if best.is_none_or(|b| cost < b.2) {
                 best = Some((axis, i, cost));
@@ -533,14 +665,69 @@ fn partition(refs: &mut [PrimRef], pred: impl Fn(&PrimRef) -> bool) -> usize {
     i
 }
 
-/// Writes the 4-wide node for the binary interior node `node` (and its subtree) into
-/// `out`; returns its index. The node takes up to four descendants: starting from the two
-/// children, the interior one with the largest surface is replaced by its own two children
-/// until there are four, which is the SAH-greedy way to flatten two levels into one.
-fn collapse(node: &BuildNode, out: &mut Vec<Node4>) -> u32 {
+/// The flat form being written: wide nodes, and leaf triangles packed in blocks of four.
+struct Flattened<'a> {
+    nodes: Vec<Node>,
+    blocks: Vec<Triangle4>,
+    prim_ids: Vec<[u32; 4]>,
+    triangles: &'a [BuildTriangle],
+    refs: &'a [PrimRef],
+}
+
+impl Flattened<'_> {
+    /// What a node slot holds for `node`: (child, kind).
+    fn slot(&mut self, node: &BuildNode) -> (u32, u32) {
+        match node {
+            BuildNode::Leaf { start, count, .. } => self.leaf(*start, *count),
+            interior => (self.collapse(interior), INTERIOR),
+        }
+    }
+
+    /// Packs the leaf's triangles into blocks; returns (first block, block count).
+    fn leaf(&mut self, start: usize, count: usize) -> (u32, u32) {
+        let first = self.blocks.len() as u32;
+        for chunk in self.refs[start..start + count].chunks(4) {
+            let tris: Vec<[Vec3; 3]> = chunk.iter().map(|r| self.triangles[r.index as usize].v).collect();
+            self.blocks.push(Triangle4::pack(&tris));
+            let mut ids = [u32::MAX; 4];
+            for (id, r) in ids.iter_mut().zip(chunk) {
+                *id = r.index | if self.triangles[r.index as usize].masked { MASKED_BIT } else { 0 };
+            }
+            self.prim_ids.push(ids);
+        }
+        (first, self.blocks.len() as u32 - first)
+    }
+
+    /// Writes the wide node for the binary interior node `node` (and its subtree); returns
+    /// its index. The node takes up to [`WIDTH`] descendants: starting from the two children,
+    /// the interior one with the largest surface is replaced by its own two children until
+    /// there are enough, which is the SAH-greedy way to flatten three levels into one.
+    fn collapse(&mut self, node: &BuildNode) -> u32 {
+        let slots = wide_descendants(node);
+        let index = self.nodes.len();
+        self.nodes.push(Node {
+            min: [[f32::INFINITY; WIDTH]; 3],
+            max: [[f32::INFINITY; WIDTH]; 3],
+            child: [0; WIDTH],
+            kind: [EMPTY; WIDTH],
+        });
+        for (k, slot) in slots.into_iter().enumerate() {
+            let b = node_bounds(slot);
+            for a in 0..3 {
+                self.nodes[index].min[a][k] = b.min[a];
+                self.nodes[index].max[a][k] = b.max[a];
+            }
+            (self.nodes[index].child[k], self.nodes[index].kind[k]) = self.slot(slot);
+        }
+        index as u32
+    }
+}
+
+/// The (up to [`WIDTH`]) descendants a wide node takes for the binary interior node `node`.
+fn wide_descendants(node: &BuildNode) -> Vec<&BuildNode> {
     let BuildNode::Interior { children, .. } = node else { unreachable!("collapse starts at interior nodes") };
     let mut slots: Vec<&BuildNode> = vec![&children[0], &children[1]];
-    while slots.len() < 4 {
+    while slots.len() < WIDTH {
         let widest = slots
             .iter()
             .enumerate()
@@ -552,22 +739,15 @@ fn collapse(node: &BuildNode, out: &mut Vec<Node4>) -> u32 {
         slots.insert(i, &children[1]);
         slots.insert(i, &children[0]);
     }
-    let index = out.len();
-    out.push(Node4 { min: [[0.0; 4]; 3], max: [[0.0; 4]; 3], child: [0; 4], kind: [EMPTY; 4] });
-    for (k, slot) in slots.into_iter().enumerate() {
-        let b = node_bounds(slot);
-        for a in 0..3 {
-            out[index].min[a][k] = b.min[a];
-            out[index].max[a][k] = b.max[a];
-        }
-        let (child, kind) = match slot {
-            BuildNode::Leaf { start, count, .. } => (*start as u32, *count as u32),
-            interior => (collapse(interior, out), INTERIOR),
-        };
-        out[index].child[k] = child;
-        out[index].kind[k] = kind;
+    slots
+}
+
+/// Levels of the wide tree that [`Flattened::collapse`] makes of `node`.
+fn max_depth(node: &BuildNode) -> usize {
+    match node {
+        BuildNode::Leaf { .. } => 0,
+        interior => 1 + wide_descendants(interior).into_iter().map(max_depth).max().unwrap_or(0),
     }
-    index as u32
 }
 
 fn node_bounds(node: &BuildNode) -> Aabb {
@@ -579,7 +759,7 @@ fn node_bounds(node: &BuildNode) -> Aabb {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::NoFilter;
+    use crate::geometry::{intersect_triangle, NoFilter};
     use crate::math::vec3;
     use crate::sampling::{uniform_sphere, Rng};
 
@@ -613,6 +793,15 @@ mod tests {
         let bvh = Bvh::build(tris);
         let stats = bvh.stats();
         assert!(stats.leaves > 100 && stats.max_depth < 64);
+        matches_brute_force_with(&bvh, tris, rng);
+        // The SSE box test, which CPUs without AVX run.
+        #[cfg(target_arch = "x86_64")]
+        if bvh.avx {
+            matches_brute_force_with(&Bvh { avx: false, ..bvh }, tris, rng);
+        }
+    }
+
+    fn matches_brute_force_with(bvh: &Bvh, tris: &[BuildTriangle], rng: &mut Rng) {
         for _ in 0..4000 {
             let o = vec3(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 12.0 - Vec3::splat(1.0);
             let ray = Ray::new(o, uniform_sphere(rng.next_2d()));
