@@ -4,6 +4,10 @@
 //! face's dimension is its number of odd coordinates and voxel (x, y, z) is the 3-face
 //! at (2x+1, 2y+1, 2z+1). The faces of a face differ from it by ±1 in one odd coordinate;
 //! the faces containing it by ±1 in one even coordinate.
+//!
+//! The array holds one more cell on every side of the doubled grid, never in the complex,
+//! so that every face has its six neighbours in the array: the thinning's inner loop then
+//! steps by fixed strides with no bounds checks and no coordinates.
 
 use std::collections::VecDeque;
 
@@ -14,6 +18,8 @@ use crate::grid::Grid;
 pub struct Complex {
     /// Doubled-grid dimensions (2·voxels + 1 on each axis).
     pub dims: [usize; 3],
+    /// One flag per cell of the padded array (see the module doc); index with
+    /// [`Complex::index`]. Padding cells are always false.
     pub cells: Vec<bool>,
 }
 
@@ -22,7 +28,7 @@ impl Complex {
     pub fn from_voxels(set: &Grid<bool>) -> Complex {
         let [w, h, d] = set.spec.dims;
         let dims = [2 * w + 1, 2 * h + 1, 2 * d + 1];
-        let mut c = Complex { dims, cells: vec![false; dims[0] * dims[1] * dims[2]] };
+        let mut c = Complex { dims, cells: vec![false; (dims[0] + 2) * (dims[1] + 2) * (dims[2] + 2)] };
         for z in 0..d {
             for y in 0..h {
                 for x in 0..w {
@@ -43,15 +49,31 @@ impl Complex {
         c
     }
 
+    /// Strides of the padded array along x, y and z.
     #[inline]
-    pub fn index(&self, p: [usize; 3]) -> usize {
-        (p[2] * self.dims[1] + p[1]) * self.dims[0] + p[0]
+    pub fn strides(&self) -> [usize; 3] {
+        [1, self.dims[0] + 2, (self.dims[0] + 2) * (self.dims[1] + 2)]
     }
 
+    /// Array index of the face at doubled-grid coordinates `p`.
+    #[inline]
+    pub fn index(&self, p: [usize; 3]) -> usize {
+        let s = self.strides();
+        (p[2] + 1) * s[2] + (p[1] + 1) * s[1] + p[0] + 1
+    }
+
+    /// Doubled-grid coordinates of the face at array index `i` (meaningless for padding).
     #[inline]
     pub fn coords(&self, i: usize) -> [usize; 3] {
-        let [nx, ny, _] = self.dims;
-        [i % nx, (i / nx) % ny, i / (nx * ny)]
+        let [_, py, pz] = self.strides();
+        [(i % py).wrapping_sub(1), (i % pz / py).wrapping_sub(1), (i / pz).wrapping_sub(1)]
+    }
+
+    /// Whether array index `i` is a face of the doubled grid rather than padding.
+    #[inline]
+    pub fn in_grid(&self, i: usize) -> bool {
+        let p = self.coords(i);
+        (0..3).all(|a| p[a] < self.dims[a])
     }
 
     /// Dimension of the face at `i`: how many of its coordinates are odd.
@@ -81,7 +103,7 @@ impl Complex {
     #[inline]
     fn steps(&self, i: usize, parity: usize) -> Few<Step, 6> {
         let p = self.coords(i);
-        let stride = [1, self.dims[0], self.dims[0] * self.dims[1]];
+        let stride = self.strides();
         let mut out = Few::new((0, 0, 0));
         for a in 0..3 {
             if p[a] & 1 != parity {
@@ -152,7 +174,11 @@ impl Complex {
     /// Linear indices, in the voxel grid, of the voxels (3-faces) that contain face `i`
     /// (at most eight; no allocation, as the constraint set asks this of every edge).
     pub fn voxels_around(&self, i: usize) -> Few<usize, 8> {
-        let p = self.coords(i);
+        self.voxels_around_at(self.coords(i))
+    }
+
+    /// [`Complex::voxels_around`] the face at doubled-grid coordinates `p`.
+    pub fn voxels_around_at(&self, p: [usize; 3]) -> Few<usize, 8> {
         let [w, h, d] = self.dims.map(|n| (n - 1) / 2);
         // Along each axis, an odd coordinate 2a+1 lies in voxel a; an even one 2a in a−1 and a.
         let options = |c: usize, n: usize| -> Few<usize, 2> {

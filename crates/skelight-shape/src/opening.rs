@@ -94,6 +94,11 @@ fn dilate_line(
 /// maximal L1 balls {x : d₁(x, y) < D₁(y)} that contain it; 0 outside the set. Balls are
 /// spread in decreasing order of radius by a breadth-first walk with a step budget, so a
 /// voxel keeps the first (largest) radius that reaches it. `l1` is the L1 distance map.
+///
+/// A walk stops at a voxel that an earlier walk (a ball at least as large) reached with at
+/// least the budget it has left: a ball lies inside the set and is 6-connected by monotone
+/// paths, so everything it could still reach from there lies in the earlier ball and has
+/// its radius already. Each voxel is thus entered only when its best budget rises.
 pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
     let spec = l1.spec;
     let d = &l1.data;
@@ -101,20 +106,23 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
         (0..d.len() as u32).filter(|&i| d[i as usize] > 0).map(|i| (d[i as usize], i)).collect();
     by_radius.sort_unstable_by_key(|&(r, _)| std::cmp::Reverse(r));
     let mut opening = vec![0u32; d.len()];
-    // Budget left when the walk for the current radius reached a voxel (+1; 0 = not yet).
+    // Largest budget left (+1) with which any walk so far reached a voxel; 0 = never.
     let mut reached = vec![0u32; d.len()];
-    let mut touched = Vec::new();
     let mut frontier = Vec::new();
     let mut next = Vec::new();
+    let mut enter = |j: usize, budget: u32, r: u32, list: &mut Vec<usize>| {
+        if reached[j] < budget {
+            reached[j] = budget;
+            if opening[j] == 0 {
+                opening[j] = r;
+            }
+            list.push(j);
+        }
+    };
     for group in by_radius.chunk_by(|a, b| a.0 == b.0) {
         let r = group[0].0;
         for &(_, i) in group {
-            let i = i as usize;
-            if reached[i] < r {
-                reached[i] = r;
-                touched.push(i);
-                frontier.push(i);
-            }
+            enter(i as usize, r, r, &mut frontier);
         }
         // Budget b = r − steps; a voxel at L1 distance < r from a centre gets b ≥ 1.
         let mut budget = r;
@@ -122,10 +130,8 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
             budget -= 1;
             for &i in &frontier {
                 for j in neighbours6(spec.dims, i) {
-                    if d[j] > 0 && reached[j] < budget {
-                        reached[j] = budget;
-                        touched.push(j);
-                        next.push(j);
+                    if d[j] > 0 {
+                        enter(j, budget, r, &mut next);
                     }
                 }
             }
@@ -133,13 +139,6 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
             next.clear();
         }
         frontier.clear();
-        for &i in &touched {
-            if opening[i] == 0 {
-                opening[i] = r;
-            }
-            reached[i] = 0;
-        }
-        touched.clear();
     }
     Grid { spec, data: opening }
 }

@@ -63,32 +63,26 @@ fn collapse_from(
     candidates: Option<Vec<usize>>,
 ) -> u32 {
     let n = x.cells.len();
-    let cx = &*x;
-    // One byte per face, so each face costs one memory access: whether it is in the
-    // complex, kept, queued for the next layer, and how many of its cofaces remain.
-    let mut state: Vec<u8> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            if !cx.cells[i] {
-                return 0;
-            }
-            let kept = if keep.is_some_and(|k| k[i]) { KEPT } else { 0 };
-            ALIVE | kept | cx.coface_count(i) as u8
-        })
-        .collect();
+    let steps = Neighbours::new(x);
+    let mut state = initial_state(x, keep, &steps);
     if let Some(d) = dates.as_deref_mut() {
-        d.birth = state.par_iter().map(|&s| if s & (ALIVE | COFACES) == ALIVE { 0 } else { NEVER }).collect();
+        d.birth = state.par_iter().map(|&s| if s & (ALIVE | COUNT) == ALIVE { 0 } else { NEVER }).collect();
         d.death = vec![NEVER; n];
     }
-    let mut candidates = candidates.unwrap_or_else(|| {
-        (0..n).into_par_iter().filter(|&i| state[i] & (ALIVE | KEPT | COFACES) == ALIVE | 1).collect()
-    });
-    let mut steps: Vec<Vec<(usize, usize)>> = vec![Vec::new(); SUB_STEPS];
+    let mut candidates = match candidates {
+        Some(mut c) => {
+            c.sort_unstable();
+            c.dedup();
+            c
+        }
+        None => (0..n).into_par_iter().filter(|&i| state[i] & (ALIVE | COUNT) == ALIVE | 1).collect(),
+    };
+    let mut buckets: Vec<Vec<(usize, usize)>> = vec![Vec::new(); SUB_STEPS];
     let mut layer = 0;
     while layer < layers {
-        let pairs: Vec<(usize, usize, usize)> = {
+        let pairs: Vec<(usize, usize, u8)> = {
             let find = |&g: &usize| {
-                let (f, step) = free_pair(cx, &state, g)?;
+                let (f, step) = steps.free_pair(&state, g)?;
                 Some((f, g, step))
             };
             if candidates.len() > 1 << 14 {
@@ -102,11 +96,14 @@ fn collapse_from(
         }
         layer += 1;
         for &(f, g, step) in &pairs {
-            steps[step].push((f, g));
+            buckets[step as usize].push((f, g));
         }
+        // Every face is queued at most once per layer: a face becomes a candidate when its
+        // coface count drops to one, which happens once, and the leftovers below had a
+        // count of one when the layer started.
         candidates.clear();
-        for step in &mut steps {
-            for (f, g) in step.drain(..) {
+        for bucket in &mut buckets {
+            for (f, g) in bucket.drain(..) {
                 if state[f] & state[g] & ALIVE == 0 {
                     continue;
                 }
@@ -116,67 +113,128 @@ fn collapse_from(
                     d.death[f] = layer;
                     d.death[g] = layer;
                 }
-                for (t, _, _) in cx.facets(f).chain(cx.facets(g)) {
-                    // t lost a coface: it may be maximal now (born), or free.
-                    state[t] -= 1;
-                    let s = state[t];
-                    if s & ALIVE == 0 {
-                        continue;
-                    }
-                    match s & COFACES {
-                        0 => {
-                            if let Some(d) = dates.as_deref_mut() {
-                                d.birth[t] = d.birth[t].min(layer);
+                for face in [f, g] {
+                    for &offset in steps.facets(state[face]) {
+                        // t lost a coface: it may be maximal now (born), or free.
+                        let t = face.wrapping_add_signed(offset);
+                        state[t] -= 1;
+                        let s = state[t];
+                        if s & ALIVE == 0 {
+                            continue;
+                        }
+                        match s & COUNT {
+                            // Counts only fall, so this happens once per face.
+                            0 => {
+                                if let Some(d) = dates.as_deref_mut() {
+                                    d.birth[t] = layer;
+                                }
                             }
+                            1 => candidates.push(t),
+                            _ => {}
                         }
-                        1 if s & (KEPT | QUEUED) == 0 => {
-                            state[t] |= QUEUED;
-                            candidates.push(t);
-                        }
-                        _ => {}
                     }
                 }
             }
         }
         // Pairs whose larger face went with another facet are not free any more; the
         // others stay free for the next layer.
-        for (_, g, _) in pairs {
-            if state[g] & (ALIVE | COFACES | QUEUED) == ALIVE | 1 {
-                state[g] |= QUEUED;
-                candidates.push(g);
-            }
-        }
-        for &i in &candidates {
-            state[i] &= !QUEUED;
-        }
+        candidates.extend(pairs.iter().map(|p| p.1).filter(|&g| state[g] & (ALIVE | COUNT) == ALIVE | 1));
     }
     x.cells.par_iter_mut().zip(&state).for_each(|(c, &s)| *c = s & ALIVE != 0);
     if let Some(d) = dates {
         // A face removed before it became a facet is born when it dies (lifespan 0).
-        for i in 0..n {
-            if d.death[i] != NEVER && d.birth[i] == NEVER {
-                d.birth[i] = d.death[i];
+        d.birth.par_iter_mut().zip(&d.death).for_each(|(birth, &death)| {
+            if death != NEVER && *birth == NEVER {
+                *birth = death;
             }
-        }
+        });
     }
     layer
 }
 
-/// Bits of the per-face state byte of [`collapse_from`]: the count of cofaces left (0–6) in
-/// the low bits, then flags.
-const COFACES: u8 = 0b111;
-const ALIVE: u8 = 1 << 3;
-const KEPT: u8 = 1 << 4;
-const QUEUED: u8 = 1 << 5;
+/// Bits of the per-face state byte of [`collapse_from`], so that each face costs one memory
+/// access. The low four bits count the cofaces left (0–6), plus [`KEPT_BIAS`] for a face
+/// that must stay: a kept face then never has a count of 0 or 1, so it is never free and
+/// never queued. Then whether the face is in the complex, and its type in the top three
+/// bits: bit a set when its coordinate along axis a is odd.
+const COUNT: u8 = 0b1111;
+const KEPT_BIAS: u8 = 8;
+const ALIVE: u8 = 1 << 4;
+const TYPE_SHIFT: u32 = 5;
 
-/// The face `f` forming a free pair with `g` (g in the complex, not kept, with exactly one
-/// coface left) and the pair's sub-step; `None` if g is not free.
-fn free_pair(x: &Complex, state: &[u8], g: usize) -> Option<(usize, usize)> {
-    if state[g] & (ALIVE | KEPT | COFACES) != ALIVE | 1 {
-        return None;
+/// The state byte of every cell of `x` (see [`COUNT`]), built plane by plane in parallel.
+fn initial_state(x: &Complex, keep: Option<&[bool]>, steps: &Neighbours) -> Vec<u8> {
+    let [_, sy, sz] = x.strides();
+    let dims = x.dims;
+    let mut state = vec![0u8; x.cells.len()];
+    state.par_chunks_mut(sz).enumerate().for_each(|(pz, plane)| {
+        if pz == 0 || pz > dims[2] {
+            return;
+        }
+        let z = pz - 1;
+        for y in 0..dims[1] {
+            for px in 0..dims[0] {
+                let local = (y + 1) * sy + px + 1;
+                let i = pz * sz + local;
+                if !x.cells[i] {
+                    continue;
+                }
+                let ty = (px & 1 | (y & 1) << 1 | (z & 1) << 2) as u8;
+                let count =
+                    steps.cofaces[ty as usize].iter().filter(|&&(o, _)| x.cells[i.wrapping_add_signed(o)]).count();
+                let kept = if keep.is_some_and(|k| k[i]) { KEPT_BIAS } else { 0 };
+                plane[local] = ALIVE | ty << TYPE_SHIFT | (count as u8 + kept);
+            }
+        }
+    });
+    state
+}
+
+/// For each of the eight face types, the array offsets of a face's facets and cofaces
+/// (the padded array has them all), the latter with the sub-step of the pair they form.
+struct Neighbours {
+    facets: [Vec<isize>; 8],
+    cofaces: [Vec<(isize, u8)>; 8],
+}
+
+impl Neighbours {
+    fn new(x: &Complex) -> Neighbours {
+        let stride = x.strides();
+        let mut facets: [Vec<isize>; 8] = Default::default();
+        let mut cofaces: [Vec<(isize, u8)>; 8] = Default::default();
+        for ty in 0..8usize {
+            let coface_dim = ty.count_ones() as usize + 1;
+            for (a, &s) in stride.iter().enumerate() {
+                let s = s as isize;
+                if ty >> a & 1 == 1 {
+                    facets[ty].extend([-s, s]);
+                } else {
+                    cofaces[ty].extend([(-s, -1), (s, 1)].map(|(o, sign)| (o, sub_step(a, sign, coface_dim) as u8)));
+                }
+            }
+        }
+        Neighbours { facets, cofaces }
     }
-    let (f, axis, sign) = x.cofaces(g).find(|&(f, _, _)| state[f] & ALIVE != 0)?;
-    Some((f, sub_step(axis, sign, x.dim(f))))
+
+    /// Facet offsets of a face with state byte `s`.
+    #[inline]
+    fn facets(&self, s: u8) -> &[isize] {
+        &self.facets[(s >> TYPE_SHIFT) as usize]
+    }
+
+    /// The face `f` forming a free pair with `g` (g in the complex, not kept, with exactly
+    /// one coface left) and the pair's sub-step; `None` if g is not free.
+    #[inline]
+    fn free_pair(&self, state: &[u8], g: usize) -> Option<(usize, u8)> {
+        let s = state[g];
+        if s & (ALIVE | COUNT) != ALIVE | 1 {
+            return None;
+        }
+        self.cofaces[(s >> TYPE_SHIFT) as usize]
+            .iter()
+            .map(|&(o, step)| (g.wrapping_add_signed(o), step))
+            .find(|&(f, _)| state[f] & ALIVE != 0)
+    }
 }
 
 /// Which inequality selects the edges kept by Alg. 3.
@@ -201,8 +259,18 @@ pub enum EdgeConstraint {
 /// curves remain; a surface around k cavities needs k rounds.
 pub fn curvilinear_skeleton(set: &Grid<bool>, constraint: EdgeConstraint, anchors: &[usize]) -> (Complex, Dates) {
     let (mut skeleton, dates, keep) = constraint_set(set, constraint, anchors);
+    skip_shared_layers(&mut skeleton, &dates, &keep);
     thin_keeping(&mut skeleton, &keep);
     (skeleton, dates)
+}
+
+/// Alg. 2 is deterministic, so the collapse keeping `keep` removes exactly the pairs of the
+/// unconstrained one until a face of `keep` is about to die: moves `x` (the complex the
+/// dates were taken on) to the unconstrained state before that layer, skipping the work
+/// the two collapses share.
+fn skip_shared_layers(x: &mut Complex, dates: &Dates, keep: &[bool]) {
+    let first = keep.par_iter().zip(&dates.death).filter(|(&k, _)| k).map(|(_, &d)| d).min().unwrap_or(NEVER);
+    x.cells.par_iter_mut().zip(&dates.death).for_each(|(c, &death)| *c &= death >= first);
 }
 
 /// The complex of `set`, the dates of its unconstrained thinning, and Alg. 3's constraint
@@ -246,24 +314,34 @@ pub fn edge_constraint(
     constraint: EdgeConstraint,
 ) -> Vec<bool> {
     let mut keep = vec![false; x.cells.len()];
-    keep.par_iter_mut().enumerate().for_each(|(e, kept)| {
-        if !x.cells[e] || x.dim(e) != 1 {
-            return;
+    let [_, sy, sz] = x.strides();
+    let dims = x.dims;
+    keep.par_chunks_mut(sz).enumerate().skip(1).take(dims[2]).for_each(|(pz, plane)| {
+        let z = pz - 1;
+        for y in 0..dims[1] {
+            for px in 0..dims[0] {
+                let p = [px, y, z];
+                let local = (y + 1) * sy + px + 1;
+                let e = pz * sz + local;
+                if (px & 1) + (y & 1) + (z & 1) != 1 || !x.cells[e] {
+                    continue;
+                }
+                let Some(lifespan) = dates.lifespan(e) else { continue };
+                // D and DC of an edge: their largest values over the voxels around it.
+                let (mut d, mut dc) = (0i64, 0i64);
+                for v in x.voxels_around_at(p) {
+                    let (dv, ov) = (distance.data[v] as i64, opening.data[v] as i64);
+                    d = d.max(dv);
+                    dc = dc.max(ov - dv);
+                }
+                let birth = dates.birth[e] as i64;
+                let bound = match constraint {
+                    EdgeConstraint::Thesis => dc + birth - d,
+                    EdgeConstraint::ReleasedCode => dc + birth,
+                };
+                plane[local] = lifespan as i64 > bound;
+            }
         }
-        let Some(lifespan) = dates.lifespan(e) else { return };
-        // D and DC of an edge: their largest values over the voxels around it.
-        let (mut d, mut dc) = (0i64, 0i64);
-        for v in x.voxels_around(e) {
-            let (dv, ov) = (distance.data[v] as i64, opening.data[v] as i64);
-            d = d.max(dv);
-            dc = dc.max(ov - dv);
-        }
-        let birth = dates.birth[e] as i64;
-        let bound = match constraint {
-            EdgeConstraint::Thesis => dc + birth - d,
-            EdgeConstraint::ReleasedCode => dc + birth,
-        };
-        *kept = lifespan as i64 > bound;
     });
     // W must be a complex: keep the kept edges' vertices too.
     for e in 0..x.cells.len() {
@@ -327,7 +405,7 @@ mod tests {
         // The exterior: every border cell not in the complex, flooded together.
         let mut count = 1;
         for (i, s) in seen.iter_mut().enumerate() {
-            if !x.cells[i] && on_border(i) && !*s {
+            if !x.cells[i] && x.in_grid(i) && on_border(i) && !*s {
                 *s = true;
                 queue.push_back(i);
             }
@@ -344,7 +422,7 @@ mod tests {
         };
         flood(&mut queue, &mut seen);
         for i in 0..n {
-            if !x.cells[i] && !seen[i] {
+            if !x.cells[i] && x.in_grid(i) && !seen[i] {
                 count += 1;
                 seen[i] = true;
                 queue.push_back(i);
@@ -507,6 +585,22 @@ mod tests {
                 assert!(pierce_surfaces(&mut x).is_empty());
             }
         }
+    }
+
+    /// Starting the constrained collapse where it leaves the unconstrained one changes
+    /// nothing: the skeleton is the one thinned from the whole complex.
+    #[test]
+    fn skipping_the_shared_layers_keeps_the_skeleton() {
+        let shapes = [two_rooms_and_a_gap(1.0), random_object([12, 11, 10], 9, 0.85), random_object([9, 8, 7], 5, 0.8)];
+        let mut skipped_any = false;
+        for set in &shapes {
+            let (mut whole, dates, keep) = constraint_set(set, EdgeConstraint::Thesis, &[]);
+            skipped_any |= keep.iter().zip(&dates.death).all(|(&k, &d)| !k || d > 1);
+            thin_keeping(&mut whole, &keep);
+            let (skipped, _) = curvilinear_skeleton(set, EdgeConstraint::Thesis, &[]);
+            assert_eq!(skipped, whole);
+        }
+        assert!(skipped_any, "no shape had a layer to skip");
     }
 
     /// An anchor in a corner of a corridor's end gets a branch of its own: the skeleton
