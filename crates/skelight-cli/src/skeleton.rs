@@ -118,7 +118,7 @@ pub fn to_f64(v: Vec3) -> [f64; 3] {
 
 /// The scene's triangles as the analysis takes them.
 pub fn scene_triangles(scene: &Scene) -> Vec<[[f64; 3]; 3]> {
-    scene.build_triangles().iter().map(|t| t.v.map(to_f64)).collect()
+    scene.surface_triangles().iter().map(|t| t.map(to_f64)).collect()
 }
 
 fn graph_json(g: &SkeletonGraph) -> String {

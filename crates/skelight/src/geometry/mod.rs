@@ -3,11 +3,13 @@
 mod bvh;
 #[cfg(feature = "embree")]
 mod embree;
+mod sphere;
 mod triangle;
 
 pub use bvh::{Bvh, BvhStats};
 #[cfg(feature = "embree")]
 pub use embree::{EmbreeAccel, EmbreeError};
+pub use sphere::Sphere;
 pub use triangle::{intersect_triangle, RayPrecomp};
 
 use crate::math::{Aabb, Vec3};

@@ -8,7 +8,7 @@ pub mod shapes;
 use crate::camera::Camera;
 use crate::color::Rgb;
 use crate::film::Filter;
-use crate::geometry::{offset_origin, Accelerator, BuildTriangle, Bvh, HitFilter, Ray};
+use crate::geometry::{offset_origin, Accelerator, BuildTriangle, Bvh, Hit, HitFilter, Ray, Sphere};
 use crate::light::{AreaEmitter, Light};
 use crate::material::Material;
 use crate::math::{vec2, Aabb, Frame, Vec2, Vec3};
@@ -30,6 +30,10 @@ pub struct Mesh {
     pub emission: Option<Rgb>,
     /// Opacity mask: hits where it is below a random threshold pass through.
     pub alpha: Option<Texture>,
+    /// The exact shape when the mesh tessellates a sphere: rays then hit the sphere itself
+    /// (see [`crate::geometry::Sphere`]), and the triangles serve only the empty-space
+    /// analysis, bounds and emitter sampling (emissive spheres stay tessellated).
+    pub sphere: Option<Sphere>,
 }
 
 impl Mesh {
@@ -152,6 +156,9 @@ pub struct Scene {
     accel: Box<dyn Accelerator>,
     /// Global triangle index → (mesh, triangle within mesh).
     tri_owner: Vec<(u32, u32)>,
+    /// Meshes traced as exact spheres, tested one by one after the accelerator (scenes
+    /// have few; their triangles are not in the accelerator).
+    spheres: Vec<(u32, Sphere)>,
     bounds: Aabb,
 }
 
@@ -189,13 +196,21 @@ impl HitFilter for AlphaFilter<'_> {
 
 impl Scene {
     pub fn build(desc: SceneDescription) -> Result<Scene, SceneError> {
-        let SceneDescription { meshes, mut materials, lights: mut other_lights, camera, settings, warnings } = desc;
+        let SceneDescription { mut meshes, mut materials, lights: mut other_lights, camera, settings, warnings } = desc;
         let camera = camera.ok_or(SceneError::NoCamera)?;
         if materials.is_empty() {
             materials.push(Material::fallback("default"));
         }
         let mut tris = Vec::new();
         let mut tri_owner = Vec::new();
+        let mut spheres = Vec::new();
+        for mesh in meshes.iter_mut() {
+            // Emitters are sampled on their triangles, and masks are tested on them: those
+            // spheres stay tessellated.
+            if mesh.emission.is_some_and(|e| !e.is_black()) || mesh.alpha.is_some() {
+                mesh.sphere = None;
+            }
+        }
         for (mi, mesh) in meshes.iter().enumerate() {
             let bad = |reason: String| SceneError::BadMesh { mesh: mesh.name.clone(), reason };
             if mesh.material as usize >= materials.len() {
@@ -217,6 +232,12 @@ impl Scene {
                         mesh.positions.len()
                     )));
                 }
+            }
+            if let Some(sphere) = mesh.sphere {
+                spheres.push((mi as u32, sphere));
+                continue;
+            }
+            for ti in 0..mesh.indices.len() {
                 tris.push(BuildTriangle { v: mesh.triangle(ti), masked: mesh.alpha.is_some() });
                 tri_owner.push((mi as u32, ti as u32));
             }
@@ -225,7 +246,10 @@ impl Scene {
             return Err(SceneError::Invalid("more than 2^31 triangles".into()));
         }
         let bvh = Bvh::build(&tris);
-        let bounds = bvh.bounds();
+        let mut bounds = bvh.bounds();
+        for (_, sphere) in &spheres {
+            bounds = bounds.union(sphere.bounds());
+        }
         let radius = if bounds.is_empty() { 1.0 } else { bounds.bounding_radius().max(1e-3) };
 
         // Emissive meshes become area lights.
@@ -276,6 +300,7 @@ impl Scene {
             warnings,
             accel: Box::new(bvh),
             tri_owner,
+            spheres,
             bounds,
         })
     }
@@ -302,7 +327,13 @@ impl Scene {
     pub fn triangle_count(&self) -> usize {
         self.tri_owner.len()
     }
-    /// Every triangle in global order, as accelerators take them.
+    /// Every triangle of every mesh, exact spheres' tessellations included: the surfaces
+    /// for analyses that need triangles (voxelisation).
+    pub fn surface_triangles(&self) -> Vec<[Vec3; 3]> {
+        self.meshes.iter().flat_map(|m| (0..m.indices.len()).map(|t| m.triangle(t))).collect()
+    }
+    /// Every triangle in global order, as accelerators take them (exact spheres are traced
+    /// apart from them).
     pub fn build_triangles(&self) -> Vec<BuildTriangle> {
         self.tri_owner
             .iter()
@@ -322,7 +353,38 @@ impl Scene {
     }
 
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
-        let hit = self.accel.intersect(ray, &self.filter())?;
+        let hit = self.accel.intersect(ray, &self.filter());
+        let tmax = hit.as_ref().map_or(ray.tmax, |h| h.t);
+        if let Some((mi, sphere, t)) = self.nearest_sphere(ray, tmax) {
+            return Some(self.sphere_interaction(mi, &sphere, t, ray));
+        }
+        Some(self.triangle_interaction(&hit?, ray))
+    }
+
+    /// The nearest exact sphere `ray` meets before `tmax`.
+    fn nearest_sphere(&self, ray: &Ray, mut tmax: f32) -> Option<(u32, Sphere, f32)> {
+        let mut best = None;
+        for &(mi, sphere) in &self.spheres {
+            if let Some(t) = sphere.intersect(ray, tmax) {
+                tmax = t;
+                best = Some((mi, sphere, t));
+            }
+        }
+        best
+    }
+
+    fn sphere_interaction(&self, mi: u32, sphere: &Sphere, t: f32, ray: &Ray) -> SurfaceInteraction {
+        let (p, outward, uv, dpdu, dpdv) = sphere.surface_at(ray.at(t));
+        let n = sphere.facing(outward);
+        let material = self.meshes[mi as usize].material;
+        let mut frame = Frame::from_normal_tangent(n, dpdu);
+        if let Some(perturb) = &self.materials[material as usize].perturbation {
+            frame = perturb.apply(&frame, dpdu, dpdv, uv);
+        }
+        SurfaceInteraction { p, t, ng: n, frame, uv, wi: -ray.d.normalize(), mesh: mi, prim: 0, material }
+    }
+
+    fn triangle_interaction(&self, hit: &Hit, ray: &Ray) -> SurfaceInteraction {
         let (mi, ti) = self.tri_owner[hit.prim as usize];
         let mesh = &self.meshes[mi as usize];
         let ti = ti as usize;
@@ -365,11 +427,12 @@ impl Scene {
             frame = perturb.apply(&frame, dpdu, dpdv, uv);
         }
         let wi = -ray.d.normalize();
-        Some(SurfaceInteraction { p, t: hit.t, ng, frame, uv, wi, mesh: mi, prim: ti as u32, material })
+        SurfaceInteraction { p, t: hit.t, ng, frame, uv, wi, mesh: mi, prim: ti as u32, material }
     }
 
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.accel.occluded(ray, &self.filter())
+        self.spheres.iter().any(|(_, s)| s.intersect(ray, ray.tmax).is_some())
+            || self.accel.occluded(ray, &self.filter())
     }
 
     /// Radiance emitted by the surface towards `si.wi` (zero unless it is an emitter's front).

@@ -35,6 +35,7 @@ impl TriangleData {
             material: 0,
             emission: None,
             alpha: None,
+            sphere: None,
         }
     }
 }

@@ -13,6 +13,7 @@ use super::{confined_path, LoadError};
 use crate::camera::{Camera, FovAxis, Lens};
 use crate::color::{rgb, srgb_to_linear, Rgb};
 use crate::film::Filter;
+use crate::geometry::Sphere;
 use crate::imageio::Image;
 use crate::light::{EnvMap, Light};
 use crate::material::fresnel::{named_conductor, named_ior};
@@ -698,6 +699,8 @@ impl Loader {
         let ty = self.attr(n, "type")?.unwrap_or_default();
         let to_world = self.transform(n, "to_world")?;
         let mut smooth_if_missing = false;
+        // The object-to-local transform of a sphere, kept to make it exact (see `Sphere`).
+        let mut sphere_local = None;
         let data: TriangleData = match ty.as_str() {
             "obj" => {
                 let f = self.string(n, "filename")?.ok_or_else(|| self.err(n, "obj needs a filename"))?;
@@ -728,6 +731,7 @@ impl Loader {
                 let local = Transform::translate([c.x as f64, c.y as f64, c.z as f64]).compose(
                     &Transform::scale([r, r, r]).ok_or_else(|| self.err(n, "sphere radius must not be zero"))?,
                 );
+                sphere_local = Some(local);
                 shapes::sphere(64).transform(&local)
             }
             "cylinder" => {
@@ -765,10 +769,15 @@ impl Loader {
         } else if data.normals.is_empty() && smooth_if_missing {
             data.normals = smooth_normals(&data);
         }
-        if self.boolean(n, "flip_normals", false)? {
+        let flip_normals = self.boolean(n, "flip_normals", false)?;
+        if flip_normals {
             data.normals.iter_mut().for_each(|v| *v = -*v);
             data.indices.iter_mut().for_each(|t| t.swap(1, 2));
         }
+        // Faceted on request, and an ellipsoid stays a mesh.
+        let sphere = sphere_local
+            .filter(|_| !face_normals)
+            .and_then(|local| Sphere::from_transform(&to_world.compose(&local), flip_normals));
         // Material: a nested <bsdf>, a <ref>, or the default diffuse.
         let mut mref = None;
         for c in n.children().filter(|c| c.is_element()) {
@@ -804,6 +813,7 @@ impl Loader {
         mesh.material = mref.index;
         mesh.alpha = mref.alpha;
         mesh.emission = emission;
+        mesh.sphere = sphere;
         self.desc.meshes.push(mesh);
         Ok(())
     }
