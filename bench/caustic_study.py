@@ -70,14 +70,14 @@ def luminance(img):
 
 # The per-pixel median of all renders: a firefly in one render neither pulls a pixel into
 # the region nor keeps one out, so the region does not favour the estimator without them.
-mean = luminance(np.median([img for imgs in images.values() for img in imgs], axis=0))
+median_image = luminance(np.median([img for imgs in images.values() for img in imgs], axis=0))
 r0, r1 = (int(x) for x in a.rows.split(":"))
 c0, c1 = (int(x) for x in a.cols.split(":"))
-box = np.zeros_like(mean, dtype=bool)
+box = np.zeros_like(median_image, dtype=bool)
 box[r0:r1, c0:c1] = True
-caustic = box & (mean > a.threshold * np.median(mean[box]))
+caustic = box & (median_image > a.threshold * np.median(median_image[box]))
 print(f"caustic region: {caustic.sum()} pixels of rows {r0}-{r1 - 1}, columns {c0}-{c1 - 1}; "
-      f"median-image luminance {mean[caustic].mean():.4g} (box median {np.median(mean[box]):.4g})")
+      f"median-image luminance {median_image[caustic].mean():.4g} (box median {np.median(median_image[box]):.4g})")
 
 lines = ["integrator,spp_seed1,spp_seed2,variance_caustic,variance_image,mean_caustic"]
 results = {}

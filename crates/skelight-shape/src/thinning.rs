@@ -164,28 +164,15 @@ const TYPE_SHIFT: u32 = 5;
 
 /// The state byte of every cell of `x` (see [`COUNT`]), built plane by plane in parallel.
 fn initial_state(x: &Complex, keep: Option<&[bool]>, steps: &Neighbours) -> Vec<u8> {
-    let [_, sy, sz] = x.strides();
-    let dims = x.dims;
     let mut state = vec![0u8; x.cells.len()];
-    state.par_chunks_mut(sz).enumerate().for_each(|(pz, plane)| {
-        if pz == 0 || pz > dims[2] {
+    x.par_for_each_face(&mut state, |p, i, s| {
+        if !x.cells[i] {
             return;
         }
-        let z = pz - 1;
-        for y in 0..dims[1] {
-            for px in 0..dims[0] {
-                let local = (y + 1) * sy + px + 1;
-                let i = pz * sz + local;
-                if !x.cells[i] {
-                    continue;
-                }
-                let ty = (px & 1 | (y & 1) << 1 | (z & 1) << 2) as u8;
-                let count =
-                    steps.cofaces[ty as usize].iter().filter(|&&(o, _)| x.cells[i.wrapping_add_signed(o)]).count();
-                let kept = if keep.is_some_and(|k| k[i]) { KEPT_BIAS } else { 0 };
-                plane[local] = ALIVE | ty << TYPE_SHIFT | (count as u8 + kept);
-            }
-        }
+        let ty = (p[0] & 1 | (p[1] & 1) << 1 | (p[2] & 1) << 2) as u8;
+        let count = steps.cofaces[ty as usize].iter().filter(|&&(o, _)| x.cells[i.wrapping_add_signed(o)]).count();
+        let kept = if keep.is_some_and(|k| k[i]) { KEPT_BIAS } else { 0 };
+        *s = ALIVE | ty << TYPE_SHIFT | (count as u8 + kept);
     });
     state
 }
@@ -314,34 +301,25 @@ pub fn edge_constraint(
     constraint: EdgeConstraint,
 ) -> Vec<bool> {
     let mut keep = vec![false; x.cells.len()];
-    let [_, sy, sz] = x.strides();
-    let dims = x.dims;
-    keep.par_chunks_mut(sz).enumerate().skip(1).take(dims[2]).for_each(|(pz, plane)| {
-        let z = pz - 1;
-        for y in 0..dims[1] {
-            for px in 0..dims[0] {
-                let p = [px, y, z];
-                let local = (y + 1) * sy + px + 1;
-                let e = pz * sz + local;
-                if (px & 1) + (y & 1) + (z & 1) != 1 || !x.cells[e] {
-                    continue;
-                }
-                let Some(lifespan) = dates.lifespan(e) else { continue };
-                // D and DC of an edge: their largest values over the voxels around it.
-                let (mut d, mut dc) = (0i64, 0i64);
-                for v in x.voxels_around_at(p) {
-                    let (dv, ov) = (distance.data[v] as i64, opening.data[v] as i64);
-                    d = d.max(dv);
-                    dc = dc.max(ov - dv);
-                }
-                let birth = dates.birth[e] as i64;
-                let bound = match constraint {
-                    EdgeConstraint::Thesis => dc + birth - d,
-                    EdgeConstraint::ReleasedCode => dc + birth,
-                };
-                plane[local] = lifespan as i64 > bound;
-            }
+    x.par_for_each_face(&mut keep, |p, e, kept| {
+        let edge = p.iter().map(|c| c & 1).sum::<usize>() == 1;
+        if !edge || !x.cells[e] {
+            return;
         }
+        let Some(lifespan) = dates.lifespan(e) else { return };
+        // D and DC of an edge: their largest values over the voxels around it.
+        let (mut d, mut dc) = (0i64, 0i64);
+        for v in x.voxels_around_at(p) {
+            let (dv, ov) = (distance.data[v] as i64, opening.data[v] as i64);
+            d = d.max(dv);
+            dc = dc.max(ov - dv);
+        }
+        let birth = dates.birth[e] as i64;
+        let bound = match constraint {
+            EdgeConstraint::Thesis => dc + birth - d,
+            EdgeConstraint::ReleasedCode => dc + birth,
+        };
+        *kept = lifespan as i64 > bound;
     });
     // W must be a complex: keep the kept edges' vertices too.
     for e in 0..x.cells.len() {
