@@ -240,7 +240,7 @@ impl Bvh {
                         (child, kind) = (node.child[k], node.kind[k]);
                         continue;
                     }
-                    // Several: nearest first (any order for any-hit), by insertion.
+                    // Several: nearest first (slot order, largest box first, for any-hit), by insertion.
                     let mut order = [(node.child[k], node.kind[k], tnear[k]); WIDTH];
                     self.prefetch(node.child[k], node.kind[k]);
                     let mut hits = 1;
@@ -440,8 +440,8 @@ fn bounds_of(refs: &[PrimRef]) -> (Aabb, Aabb) {
     let mut b = Aabb::EMPTY;
     let mut c = Aabb::EMPTY;
     for r in refs {
-        b = b.union(r.bounds);
-        c.grow(r.centroid);
+        grow_box(&mut b, &r.bounds);
+        grow_box(&mut c, &Aabb { min: r.centroid, max: r.centroid });
     }
     (b, c)
 }
@@ -496,9 +496,8 @@ impl Builder<'_> {
         }
         let (left, right) = match split {
             Split::Object { axis, bin } => {
-                let lo = cbounds.min[axis];
-                let scale = BINS as f32 / (cbounds.max[axis] - lo);
-                let mid = partition(&mut refs, |r| bin_of(r.centroid[axis], lo, scale) <= bin);
+                let axes = BinAxes::new(&cbounds);
+                let mid = partition(&mut refs, |r| axes.bin(axis, r.centroid[axis]) <= bin);
                 if mid == 0 || mid == n {
                     return self.median_split(refs, &cbounds, budget);
                 }
@@ -550,16 +549,17 @@ impl Builder<'_> {
     fn best_spatial_split(&self, refs: &[PrimRef], bounds: &Aabb, budget: usize) -> Option<(Split, f32)> {
         let parent_area = bounds.half_area().max(1e-30);
         let mut best: Option<(Split, f32)> = None;
-        for (axis, lo, scale) in binned_axes(bounds) {
-            let mut bin_bounds = [Aabb::EMPTY; BINS];
-            let mut enter = [0usize; BINS];
-            let mut exit = [0usize; BINS];
+        let axes = BinAxes::new(bounds);
+        let mut bin_bounds = [[Aabb::EMPTY; BINS]; 3];
+        let mut enter = [[0usize; BINS]; 3];
+        let mut exit = [[0usize; BINS]; 3];
+        for axis in 0..3 {
             for r in refs {
-                let first = bin_of(r.bounds.min[axis], lo, scale);
-                let last = bin_of(r.bounds.max[axis], lo, scale).max(first);
-                enter[first] += 1;
-                exit[last] += 1;
-                for (b, bin) in bin_bounds.iter_mut().enumerate().take(last + 1).skip(first) {
+                let first = axes.bin(axis, r.bounds.min[axis]);
+                let last = axes.bin(axis, r.bounds.max[axis]).max(first);
+                enter[axis][first] += 1;
+                exit[axis][last] += 1;
+                for (b, bin) in bin_bounds[axis].iter_mut().enumerate().take(last + 1).skip(first) {
                     let mut piece = r.bounds;
                     if b > first {
                         piece.min[axis] = spatial_plane(bounds, axis, b - 1);
@@ -567,11 +567,13 @@ impl Builder<'_> {
                     if b < last {
                         piece.max[axis] = spatial_plane(bounds, axis, b);
                     }
-                    *bin = bin.union(piece);
+                    grow_box(bin, &piece);
                 }
             }
-            let fits = |left: usize, right: usize| left + right <= refs.len() + budget;
-            if let Some(plane) = sah_sweep(&bin_bounds, &enter, &exit, parent_area, fits) {
+        }
+        let fits = |left: usize, right: usize| left + right <= refs.len() + budget;
+        for axis in 0..3 {
+            if let Some(plane) = sah_sweep(&bin_bounds[axis], &enter[axis], &exit[axis], parent_area, fits) {
                 if best.is_none_or(|b| plane.cost < b.1) {
                     best = Some((Split::Spatial { axis, bin: plane.bin }, plane.cost));
                 }
@@ -662,17 +664,37 @@ fn leaf_cost(n: usize) -> f32 {
     n.div_ceil(4) as f32 * BLOCK_COST
 }
 
-/// The axes along which `range` has extent, each with its start and bins per unit length.
-fn binned_axes(range: &Aabb) -> impl Iterator<Item = (usize, f32, f32)> + '_ {
-    (0..3).filter_map(|axis| {
-        let extent = range.max[axis] - range.min[axis];
-        (extent > 0.0).then(|| (axis, range.min[axis], BINS as f32 / extent))
-    })
+/// Where [`BINS`] bins lie along each axis of a range: its start and bins per unit length
+/// (0 along an axis without extent, whose values then all fall in bin 0 and give no plane).
+struct BinAxes {
+    lo: [f32; 3],
+    scale: [f32; 3],
 }
 
+impl BinAxes {
+    fn new(range: &Aabb) -> BinAxes {
+        let extent = range.extent();
+        BinAxes {
+            lo: [range.min.x, range.min.y, range.min.z],
+            scale: [0, 1, 2].map(|a| if extent[a] > 0.0 { BINS as f32 / extent[a] } else { 0.0 }),
+        }
+    }
+
+    /// The bin of coordinate `c` along `axis`, clamped to the bins.
+    #[inline]
+    fn bin(&self, axis: usize, c: f32) -> usize {
+        (((c - self.lo[axis]) * self.scale[axis]) as i32).clamp(0, BINS as i32 - 1) as usize
+    }
+}
+
+/// `b` grown to hold `piece`, with plain comparisons: build boxes hold no NaN, and the
+/// NaN-aware `f32::min` costs a fifth of the build in the binning loops.
 #[inline]
-fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
-    (((c - lo) * scale).max(0.0) as usize).min(BINS - 1)
+fn grow_box(b: &mut Aabb, piece: &Aabb) {
+    for a in 0..3 {
+        b.min[a] = if piece.min[a] < b.min[a] { piece.min[a] } else { b.min[a] };
+        b.max[a] = if piece.max[a] > b.max[a] { piece.max[a] } else { b.max[a] };
+    }
 }
 
 /// The cheapest plane between bins: the last bin on its left, its SAH cost, the boxes of
@@ -728,15 +750,19 @@ fn sah_sweep(
 fn best_object_split(refs: &[PrimRef], bounds: &Aabb, cbounds: &Aabb) -> Option<(Split, f32, f32)> {
     let parent_area = bounds.half_area().max(1e-30);
     let mut best: Option<(Split, f32, f32)> = None;
-    for (axis, lo, scale) in binned_axes(cbounds) {
-        let mut bin_bounds = [Aabb::EMPTY; BINS];
-        let mut bin_counts = [0usize; BINS];
+    let axes = BinAxes::new(cbounds);
+    let mut bin_bounds = [[Aabb::EMPTY; BINS]; 3];
+    let mut bin_counts = [[0usize; BINS]; 3];
+    for axis in 0..3 {
         for r in refs {
-            let b = bin_of(r.centroid[axis], lo, scale);
-            bin_bounds[b] = bin_bounds[b].union(r.bounds);
-            bin_counts[b] += 1;
+            let b = axes.bin(axis, r.centroid[axis]);
+            grow_box(&mut bin_bounds[axis][b], &r.bounds);
+            bin_counts[axis][b] += 1;
         }
-        if let Some(plane) = sah_sweep(&bin_bounds, &bin_counts, &bin_counts, parent_area, |_, _| true) {
+    }
+    for axis in 0..3 {
+        let counts = &bin_counts[axis];
+        if let Some(plane) = sah_sweep(&bin_bounds[axis], counts, counts, parent_area, |_, _| true) {
             if best.is_none_or(|b| plane.cost < b.1) {
                 let overlap =
                     Aabb { min: plane.left.min.max(plane.right.min), max: plane.left.max.min(plane.right.max) };
@@ -795,7 +821,11 @@ impl Flattened<'_> {
     /// the interior one with the largest surface is replaced by its own two children until
     /// there are enough, which is the SAH-greedy way to flatten three levels into one.
     fn collapse(&mut self, node: &BuildNode) -> u32 {
-        let slots = wide_descendants(node);
+        let mut slots = wide_descendants(node);
+        // Any-hit traversal takes hit children in slot order: largest first, as the likeliest
+        // to hold an occluder (any-hit +5-8 % on sponza, +2 % on sibenik). Closest-hit
+        // sorts by distance and does not care.
+        slots.sort_by(|a, b| node_bounds(b).half_area().total_cmp(&node_bounds(a).half_area()));
         let index = self.nodes.len();
         self.nodes.push(Node {
             min: [[f32::INFINITY; WIDTH]; 3],
