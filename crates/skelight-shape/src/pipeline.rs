@@ -12,12 +12,13 @@ use crate::mapping::NodeMapping;
 use crate::opening::opening;
 use crate::portals::{portals, Portal};
 use crate::skeleton::SkeletonGraph;
-use crate::thinning::{curvilinear_skeleton, EdgeConstraint};
+use crate::thinning::{curvilinear_skeleton, EdgeConstraint, TooManyLayers};
 use crate::voxelize::{empty_space, voxelize};
 
 /// Bytes the analysis holds per voxel at its peak: the doubled grid of the complex (8 cells
-/// per voxel) with two dates, a constraint flag and traversal flags, plus the maps.
-pub const BYTES_PER_VOXEL: u64 = 8 * (1 + 8 + 1 + 1 + 1) + 32;
+/// per voxel: the complex, its dated copy, the state bytes, two 16-bit dates, the
+/// constraint flags), plus the maps and the collapse's work lists.
+pub const BYTES_PER_VOXEL: u64 = 8 * (1 + 1 + 1 + 4 + 1) + 64;
 
 #[derive(Debug, thiserror::Error)]
 pub enum AnalysisError {
@@ -29,6 +30,8 @@ pub enum AnalysisError {
     NoEmptySpace,
     #[error("the scene encloses no empty space at this resolution (every empty voxel reaches the grid's border), so nothing is left with enclosed-only")]
     NothingEnclosed,
+    #[error(transparent)]
+    Thinning(#[from] TooManyLayers),
 }
 
 pub struct Analysis {
@@ -147,7 +150,7 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     lap("distance and opening maps", &mut timings);
     let anchor_voxels: Vec<Option<usize>> = settings.anchors.iter().map(|a| nearest_empty_voxel(&empty, a)).collect();
     let anchors: Vec<usize> = anchor_voxels.iter().flatten().copied().collect();
-    let (complex, _) = curvilinear_skeleton(&empty, settings.constraint, &anchors);
+    let (complex, _) = curvilinear_skeleton(&empty, settings.constraint, &anchors)?;
     lap("thinning (Alg. 2-3, piercing)", &mut timings);
     let skeleton = SkeletonGraph::from_complex(&complex, &spec, &empty, &edt);
     let filtered = skeleton.filtered();

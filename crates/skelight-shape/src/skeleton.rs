@@ -103,7 +103,7 @@ mod tests {
     #[test]
     fn graph_and_filtered_graph_of_two_rooms() {
         let empty = two_rooms_and_a_gap(0.5);
-        let (x, _) = curvilinear_skeleton(&empty, EdgeConstraint::Thesis, &[]);
+        let (x, _) = curvilinear_skeleton(&empty, EdgeConstraint::Thesis, &[]).unwrap();
         let edt = euclidean_squared(&empty, true);
         let g = SkeletonGraph::from_complex(&x, &empty.spec, &empty, &edt);
         assert!(!g.nodes.is_empty());
