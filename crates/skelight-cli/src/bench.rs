@@ -36,6 +36,8 @@ pub struct RayResult {
     pub closest_mrays: f64,
     pub any_mrays: f64,
     pub hits: usize,
+    /// The backend's description of what it built.
+    pub structure: Option<String>,
 }
 
 fn best_of<T>(runs: usize, mut f: impl FnMut() -> (Duration, T)) -> (Duration, T) {
@@ -74,7 +76,13 @@ pub fn measure(
         (t.elapsed(), n)
     });
     let m = rays.len() as f64 / 1e6;
-    RayResult { build: build_time, closest_mrays: m / closest.as_secs_f64(), any_mrays: m / any.as_secs_f64(), hits }
+    RayResult {
+        build: build_time,
+        closest_mrays: m / closest.as_secs_f64(),
+        any_mrays: m / any.as_secs_f64(),
+        hits,
+        structure: accel.describe(),
+    }
 }
 
 /// Builds an accelerator over the scene's triangles.

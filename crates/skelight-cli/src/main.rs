@@ -385,6 +385,9 @@ fn bench(what: BenchKind) -> Result<()> {
                         r.any_mrays,
                         100.0 * r.hits as f64 / rs.len() as f64
                     );
+                    if let Some(structure) = &r.structure {
+                        println!("{:<28} {structure}", "");
+                    }
                     first.get_or_insert((r.build.as_secs_f64(), r.closest_mrays, r.any_mrays));
                 }
             }

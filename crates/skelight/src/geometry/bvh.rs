@@ -318,6 +318,13 @@ impl Accelerator for Bvh {
     fn bounds(&self) -> Aabb {
         self.bounds
     }
+    fn describe(&self) -> Option<String> {
+        let s = self.stats();
+        Some(format!(
+            "{} nodes, {} leaves, {} triangle references, depth {}, SAH cost {:.3}",
+            s.nodes, s.leaves, s.references, s.max_depth, s.sah_cost
+        ))
+    }
 }
 
 #[cfg(not(target_arch = "x86_64"))]

@@ -76,6 +76,11 @@ pub trait Accelerator: Send + Sync {
     fn intersect(&self, ray: &Ray, filter: &dyn HitFilter) -> Option<Hit>;
     fn occluded(&self, ray: &Ray, filter: &dyn HitFilter) -> bool;
     fn bounds(&self) -> Aabb;
+    /// One line on the structure built (sizes, SAH cost), for benchmarks; `None` where the
+    /// backend does not expose it.
+    fn describe(&self) -> Option<String> {
+        None
+    }
 }
 
 /// Offset for spawning rays off a surface at `p`: scales with the coordinate magnitude,
