@@ -16,7 +16,7 @@ use crate::opening::l1_opening;
 use rayon::prelude::*;
 
 /// A layer number. Two per face of the complex are kept, so 16 bits rather than 32 take a
-/// sixth off the analysis' peak memory (door 234: 503 → 424 MB) and the dated collapse
+/// sixth off the analysis' peak memory (door 234: 503 → 422 MB) and the dated collapse
 /// writes half the bytes.
 pub type Date = u16;
 

@@ -232,8 +232,15 @@ impl Aabb {
     pub fn center(&self) -> Vec3 {
         (self.min + self.max) * 0.5
     }
+    /// Whether the box holds no point: `EMPTY`, or an intersection of disjoint boxes (which
+    /// can be inverted along any axis, not only x).
     pub fn is_empty(&self) -> bool {
-        self.min.x > self.max.x
+        !(self.min.x <= self.max.x && self.min.y <= self.max.y && self.min.z <= self.max.z)
+    }
+    /// The points in both boxes (empty if they are disjoint).
+    #[inline]
+    pub fn intersection(self, o: Aabb) -> Aabb {
+        Aabb { min: self.min.max(o.min), max: self.max.min(o.max) }
     }
     /// Half the surface area (all the SAH needs).
     #[inline]
