@@ -83,6 +83,30 @@ fn undefined_parameters_and_bad_values_are_named() {
 }
 
 #[test]
+fn sunsky_parameters_out_of_range_are_named() {
+    let d = Dir::new("sunsky");
+    let p =
+        d.file("t.xml", scene(r#"<emitter type="sunsky"><float name="turbidity" value="20"/></emitter>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["t.xml:", "turbidity", "[1, 10]"]);
+    let p = d.file(
+        "a.xml",
+        scene(r#"<emitter type="sunsky"><rgb name="albedo" value="0.2, 1.4, 0.2"/></emitter>"#).as_bytes(),
+    );
+    assert_mentions(&load_err(&p), &["a.xml:", "albedo"]);
+    let p = d.file(
+        "both.xml",
+        scene(r#"<emitter type="sunsky"><vector name="sun_direction" value="0, 0, 1"/><float name="hour" value="9"/></emitter>"#)
+            .as_bytes(),
+    );
+    assert_mentions(&load_err(&p), &["both.xml:", "sun_direction", "hour"]);
+    let p = d.file(
+        "ap.xml",
+        scene(r#"<emitter type="sunsky"><float name="sun_aperture" value="-1"/></emitter>"#).as_bytes(),
+    );
+    assert_mentions(&load_err(&p), &["ap.xml:", "sun_aperture"]);
+}
+
+#[test]
 fn files_outside_the_scene_folder_are_refused() {
     let d = Dir::new("escape");
     d.file("outside.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
