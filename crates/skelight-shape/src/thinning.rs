@@ -230,21 +230,21 @@ fn collapse_in_slabs(
     while layer < layers {
         // The free pairs when the layer starts, by slab and sub-step.
         let find = |(cands, slab_buckets): (&Vec<usize>, &mut ByStep)| {
-            let mut pairs = Vec::new();
+            let mut found = 0;
             for &g in cands {
                 if let Some((f, step)) = steps.free_pair(&state, g) {
                     slab_buckets[step as usize].push((f, g));
-                    pairs.push((f, g));
+                    found += 1;
                 }
             }
-            pairs
+            found
         };
-        let found: Vec<Vec<Pair>> = if candidates.iter().map(Vec::len).sum::<usize>() >= PARALLEL_PAIRS {
-            candidates.par_iter().zip(&mut buckets).map(find).collect()
+        let found: usize = if candidates.iter().map(Vec::len).sum::<usize>() >= PARALLEL_PAIRS {
+            candidates.par_iter().zip(&mut buckets).map(find).sum()
         } else {
-            candidates.iter().zip(&mut buckets).map(find).collect()
+            candidates.iter().zip(&mut buckets).map(find).sum()
         };
-        if found.iter().all(Vec::is_empty) {
+        if found == 0 {
             break;
         }
         layer += 1;
@@ -277,12 +277,11 @@ fn collapse_in_slabs(
                                 border.push((f, g));
                             }
                         }
-                        slab_buckets[step].clear();
                     });
             } else {
                 // Too few to be worth waking the other threads.
-                for (b, slab_buckets) in border.iter_mut().zip(&mut buckets) {
-                    b.append(&mut slab_buckets[step]);
+                for (b, slab_buckets) in border.iter_mut().zip(&buckets) {
+                    b.extend_from_slice(&slab_buckets[step]);
                 }
             }
             let mut whole = Removal {
@@ -296,8 +295,10 @@ fn collapse_in_slabs(
         }
         // Pairs whose larger face went with another facet are not free any more; the
         // others stay free for the next layer.
-        for (next, pairs) in candidates.iter_mut().zip(&found) {
-            next.extend(pairs.iter().map(|p| p.1).filter(|&g| state[g] & (ALIVE | COUNT) == ALIVE | 1));
+        for (next, slab_buckets) in candidates.iter_mut().zip(&mut buckets) {
+            for bucket in slab_buckets.iter_mut() {
+                next.extend(bucket.drain(..).map(|p| p.1).filter(|&g| state[g] & (ALIVE | COUNT) == ALIVE | 1));
+            }
         }
     }
     x.cells.par_iter_mut().zip(&state).for_each(|(c, &s)| *c = s & ALIVE != 0);
@@ -517,22 +518,22 @@ pub fn edge_constraint(
 /// shared edges): the square with the lowest index, a deterministic choice. Returns the
 /// squares removed. Breaks topology on purpose: a cavity becomes reachable.
 pub fn pierce_surfaces(x: &mut Complex) -> Vec<usize> {
-    let n = x.cells.len();
-    let mut seen = vec![false; n];
+    // After thinning few squares are left in a large array: find them in parallel, then
+    // walk their patches (in index order, so the first square of each patch is pierced).
+    let squares: Vec<usize> = (0..x.cells.len()).into_par_iter().filter(|&i| x.cells[i] && x.dim(i) == 2).collect();
+    let mut seen = std::collections::HashSet::with_capacity(squares.len());
     let mut queue = std::collections::VecDeque::new();
     let mut pierced = Vec::new();
-    for start in 0..n {
-        if !x.cells[start] || seen[start] || x.dim(start) != 2 {
+    for start in squares {
+        if !seen.insert(start) {
             continue;
         }
         pierced.push(start);
-        seen[start] = true;
         queue.push_back(start);
         while let Some(sq) = queue.pop_front() {
             for (edge, _, _) in x.facets(sq) {
                 for (other, _, _) in x.cofaces(edge) {
-                    if x.cells[other] && !seen[other] {
-                        seen[other] = true;
+                    if x.cells[other] && seen.insert(other) {
                         queue.push_back(other);
                     }
                 }
