@@ -2,7 +2,7 @@
 """Regenerates crates/skelight/data/sunsky.bin, the Hosek-Wilkie sky and sun tables the
 `sunsky` emitter needs, from the datasets Mitsuba 3 ships (pip install mitsuba).
 
-Only the RGB tables are kept (18 KB instead of 550 KB), already in skelight's units:
+Only the RGB tables are kept (148 KB instead of 550 KB), already in skelight's units:
   - sky_params   [turbidity 10][albedo 2][bezier point 6][channel 3][9]  Hosek-Wilkie A..I
   - sky_radiance [turbidity 10][albedo 2][bezier point 6][channel 3]     mean radiance,
                  multiplied by Mitsuba's CIE Y normalisation (1/106.7502), as Mitsuba's
@@ -12,7 +12,12 @@ Only the RGB tables are kept (18 KB instead of 550 KB), already in skelight's un
                  through CIE 1931 (mean over the wavelengths, as Mitsuba's spectrum_to_srgb),
                  times Mitsuba's spectral-to-RGB solar constant 467.069280386 and its CIE Y
                  normalisation (checked against Mitsuba's sun: scripts/sunsky_reference.py)
-Layout: b"SKYRGB01", then those arrays as little-endian float32, in that order.
+  - sun_limb     [turbidity 10][elevation segment 45][channel 3][power of x 4][power of cos psi 6]
+                 the disk's radiance with limb darkening (`complex_sun`): a polynomial in the
+                 view direction's elevation x (past the segment's start, pi/2 (k/45)^3) and
+                 in cos psi, psi the angle from the disk's centre seen from the sun; times
+                 the same two constants
+Layout: b"SKYRGB02", then those arrays as little-endian float32, in that order.
 The data's licence (Hosek & Wilkie, 3-clause BSD) is in data/LICENSE-hosek-wilkie.txt.
 """
 import os
@@ -55,11 +60,12 @@ def main(out):
         ds["sky_params_rgb"],
         ds["sky_rad_rgb"] * CIE_Y_NORMALIZATION,
         sun_rgb,
+        ds["sun_rad_rgb"] * (SPEC_TO_RGB_SUN * CIE_Y_NORMALIZATION),
     ]
-    assert [a.shape for a in arrays] == [(10, 2, 6, 3, 9), (10, 2, 6, 3), (10, 30, 3)]
+    assert [a.shape for a in arrays] == [(10, 2, 6, 3, 9), (10, 2, 6, 3), (10, 30, 3), (10, 45, 3, 4, 6)]
     tmp = out + ".tmp"
     with open(tmp, "wb") as f:
-        f.write(b"SKYRGB01")
+        f.write(b"SKYRGB02")
         for a in arrays:
             f.write(np.ascontiguousarray(a, dtype="<f4").tobytes())
     os.replace(tmp, out)

@@ -3,7 +3,8 @@
 //! The sky's nine parameters and mean radiance per channel are interpolated linearly in
 //! turbidity and ground albedo and along a quintic Bézier curve in the cube root of the sun's
 //! elevation; the sun is a uniform disk whose irradiance comes from the model's table (Mitsuba
-//! 3's default `complex_sun = false`). The tables (`data/sunsky.bin`, 18 KB) are derived from
+//! 3's default), or with `complex_sun` a disk darkening towards its limb, of the same power.
+//! The tables (`data/sunsky.bin`, 148 KB) are derived from
 //! the datasets Mitsuba ships by `scripts/sunsky_data.py`; values agree with Mitsuba 3.9.1's
 //! `scalar_rgb` evaluation (tests below). The emitter's local frame is Z-up with X north.
 //!
@@ -17,7 +18,7 @@ use crate::sampling::Distribution2D;
 
 /// Tables of the Hosek–Wilkie model, see `scripts/sunsky_data.py` for the layout.
 const DATA: &[u8] = include_bytes!("../../data/sunsky.bin");
-const MAGIC: &[u8; 8] = b"SKYRGB01";
+const MAGIC: &[u8; 8] = b"SKYRGB02";
 const TURBIDITY_LEVELS: usize = 10;
 const ALBEDO_LEVELS: usize = 2;
 const BEZIER_POINTS: usize = 6;
@@ -27,6 +28,13 @@ const SUN_ELEVATIONS: usize = 30;
 const SKY_PARAMS_LEN: usize = TURBIDITY_LEVELS * ALBEDO_LEVELS * BEZIER_POINTS * 3 * SKY_PARAMS;
 const SKY_RADIANCE_LEN: usize = TURBIDITY_LEVELS * ALBEDO_LEVELS * BEZIER_POINTS * 3;
 const SUN_IRRADIANCE_LEN: usize = TURBIDITY_LEVELS * SUN_ELEVATIONS * 3;
+/// The limb-darkened disk: a polynomial per segment of elevation (cube-root spaced), of
+/// degree 3 in the elevation and 5 in cos ψ.
+const LIMB_SEGMENTS: usize = 45;
+const LIMB_X_TERMS: usize = 4;
+const LIMB_PSI_TERMS: usize = 6;
+const LIMB_SEGMENT_LEN: usize = 3 * LIMB_X_TERMS * LIMB_PSI_TERMS;
+const SUN_LIMB_LEN: usize = TURBIDITY_LEVELS * LIMB_SEGMENTS * LIMB_SEGMENT_LEN;
 /// Full angle subtended by the sun seen from the earth, in degrees (Mitsuba's default).
 pub const SUN_APERTURE_DEG: f32 = 0.5358;
 /// Resolution of the sky's sampling table over the upper hemisphere (azimuth × polar angle).
@@ -83,6 +91,8 @@ pub struct SunSkyParams {
     pub sky_scale: f32,
     /// Full angle of the sun's disk in degrees; the sun's irradiance stays the same.
     pub sun_aperture_deg: f32,
+    /// Darken the disk towards its limb (Mitsuba's `complex_sun`); same power.
+    pub complex_sun: bool,
     /// Emitter to world (the emitter's frame is Z-up).
     pub to_world: Transform,
 }
@@ -96,6 +106,7 @@ impl Default for SunSkyParams {
             sun_scale: 1.0,
             sky_scale: 1.0,
             sun_aperture_deg: SUN_APERTURE_DEG,
+            complex_sun: false,
             to_world: Transform::IDENTITY,
         }
     }
@@ -114,6 +125,9 @@ pub struct SunSky {
     sky_radiance: Rgb,
     /// Radiance of the sun's disk (includes `sun_scale`).
     sun_radiance: Rgb,
+    /// With `complex_sun`: the limb-darkening polynomials for this turbidity, by segment,
+    /// scaled like `sun_radiance`.
+    limb: Option<Vec<[f32; LIMB_SEGMENT_LEN]>>,
     /// sin² and 1 − cos of the sun's half aperture: disk membership and cone sampling stay
     /// exact for a half-degree disk, where 1 − cos in f32 would lose most of its digits.
     sun_sin2: f32,
@@ -132,18 +146,21 @@ struct Tables {
     sky_params: &'static [u8],
     sky_radiance: &'static [u8],
     sun_irradiance: &'static [u8],
+    sun_limb: &'static [u8],
 }
 
 impl Tables {
     fn get() -> Tables {
         let body = &DATA[MAGIC.len()..];
         assert!(
-            DATA.starts_with(MAGIC) && body.len() == 4 * (SKY_PARAMS_LEN + SKY_RADIANCE_LEN + SUN_IRRADIANCE_LEN),
+            DATA.starts_with(MAGIC)
+                && body.len() == 4 * (SKY_PARAMS_LEN + SKY_RADIANCE_LEN + SUN_IRRADIANCE_LEN + SUN_LIMB_LEN),
             "data/sunsky.bin is not the table file this build expects (regenerate with scripts/sunsky_data.py)"
         );
         let (sky_params, rest) = body.split_at(4 * SKY_PARAMS_LEN);
-        let (sky_radiance, sun_irradiance) = rest.split_at(4 * SKY_RADIANCE_LEN);
-        Tables { sky_params, sky_radiance, sun_irradiance }
+        let (sky_radiance, rest) = rest.split_at(4 * SKY_RADIANCE_LEN);
+        let (sun_irradiance, sun_limb) = rest.split_at(4 * SUN_IRRADIANCE_LEN);
+        Tables { sky_params, sky_radiance, sun_irradiance, sun_limb }
     }
 }
 
@@ -194,6 +211,11 @@ impl SunSky {
         let solid_angle = 2.0 * std::f64::consts::PI * one_minus_cos;
         let irradiance = sun_irradiance(&t, p.turbidity, elevation);
         let sun_radiance = irradiance * ((p.sun_scale * daylight) as f64 / solid_angle) as f32;
+        // The limb polynomials give the radiance of the standard half-degree disk; a wider
+        // one is dimmer by the ratio of solid angles, as the uniform disk is.
+        let standard = 2.0 * (0.25 * (SUN_APERTURE_DEG as f64).to_radians()).sin().powi(2);
+        let limb_scale = (p.sun_scale * daylight) as f64 * standard / one_minus_cos;
+        let limb = p.complex_sun.then(|| sun_limb(&t, p.turbidity, limb_scale as f32));
 
         let mut sky = SunSky {
             to_world: p.to_world,
@@ -202,6 +224,7 @@ impl SunSky {
             sky_params,
             sky_radiance,
             sun_radiance,
+            limb,
             sun_sin2: half.sin().powi(2) as f32,
             sun_one_minus_cos: one_minus_cos as f32,
             sun_frame: Frame::from_normal(sun),
@@ -251,8 +274,33 @@ impl SunSky {
         if d.z < 0.0 {
             return Rgb::BLACK;
         }
-        let sun = if self.in_sun(d) { self.sun_radiance } else { Rgb::BLACK };
+        let sun = match &self.limb {
+            _ if !self.in_sun(d) => Rgb::BLACK,
+            None => self.sun_radiance,
+            Some(limb) => self.limb_darkened(limb, d),
+        };
         self.sky(d) + sun
+    }
+
+    /// Radiance of the limb-darkened disk towards local direction `d` (in the disk).
+    fn limb_darkened(&self, limb: &[[f32; LIMB_SEGMENT_LEN]], d: Vec3) -> Rgb {
+        let elevation = d.z.clamp(0.0, 1.0).asin();
+        let segment = (((2.0 * elevation / PI).cbrt() * LIMB_SEGMENTS as f32) as usize).min(LIMB_SEGMENTS - 1);
+        let x = elevation - 0.5 * PI * (segment as f32 / LIMB_SEGMENTS as f32).powi(3);
+        // cos ψ: ψ the angle between the disk's centre and the seen point, from the sun.
+        let cos_psi = (1.0 - d.cross(self.sun).length_squared() / self.sun_sin2).max(0.0).sqrt();
+        let coefficients = &limb[segment];
+        let mut out = [0.0f32; 3];
+        for (c, value) in out.iter_mut().enumerate() {
+            let mut x_power = 1.0;
+            for k in 0..LIMB_X_TERMS {
+                let row = &coefficients[(c * LIMB_X_TERMS + k) * LIMB_PSI_TERMS..][..LIMB_PSI_TERMS];
+                let in_psi = row.iter().rev().fold(0.0, |acc, &a| acc * cos_psi + a);
+                *value += x_power * in_psi;
+                x_power *= x;
+            }
+        }
+        Rgb::from_array(out)
     }
 
     /// Direction of a point (u, v) of the sky table: azimuth 2πu, polar angle πv/2; and sinθ.
@@ -333,7 +381,10 @@ impl Environment for SunSky {
         if !(pdf > 0.0) {
             return None;
         }
-        Some((self.to_world.vector(local).normalize(), self.eval_local(local), pdf))
+        // Radiance of the world direction as returned, so that it equals eval() exactly: at
+        // the limb of a darkened sun a rounding of the direction moves cos ψ visibly.
+        let d = self.to_world.vector(local).normalize();
+        Some((d, self.eval(d), pdf))
     }
 
     fn pdf(&self, d: Vec3) -> f32 {
@@ -382,6 +433,19 @@ fn sun_irradiance(t: &Tables, turbidity: f32, elevation: f32) -> Rgb {
         rgb(value(t.sun_irradiance, i), value(t.sun_irradiance, i + 1), value(t.sun_irradiance, i + 2))
     };
     (at(t0, e0) * (1.0 - we) + at(t0, e1) * we) * (1.0 - wt) + (at(t1, e0) * (1.0 - we) + at(t1, e1) * we) * wt
+}
+
+/// The limb-darkening polynomials of every elevation segment for `turbidity`, times `scale`.
+fn sun_limb(t: &Tables, turbidity: f32, scale: f32) -> Vec<[f32; LIMB_SEGMENT_LEN]> {
+    let (t0, t1, wt) = lerp_indices(turbidity - 1.0, TURBIDITY_LEVELS);
+    (0..LIMB_SEGMENTS)
+        .map(|segment| {
+            std::array::from_fn(|i| {
+                let at = |turb: usize| value(t.sun_limb, (turb * LIMB_SEGMENTS + segment) * LIMB_SEGMENT_LEN + i);
+                scale * (at(t0) * (1.0 - wt) + at(t1) * wt)
+            })
+        })
+        .collect()
 }
 
 /// Unit direction towards the sun in the emitter's frame (Z up, X north, azimuth measured
@@ -441,7 +505,8 @@ mod tests {
     type Vector = ([f32; 3], [f32; 3]);
 
     /// Radiance of Mitsuba 3.9.1's `sunsky` (scalar_rgb) printed by scripts/sunsky_reference.py:
-    /// six sky directions (one below the horizon) and the sun's centre, per configuration.
+    /// sky directions (one below the horizon), the sun's centre and, for the limb-darkened
+    /// sun, points across its disk, per configuration.
     #[allow(clippy::excessive_precision)] // printed verbatim by the script
     fn mitsuba_reference() -> Vec<(SunSkyParams, Vec<Vector>)> {
         let default_sky = SunSkyParams { sun: SunPosition::Direction(vec3(0.3, 0.2, 0.6)), ..Default::default() };
@@ -467,6 +532,15 @@ mod tests {
             }),
             turbidity: 2.2,
             to_world: Transform::rotate([0.98058068, 0.19611614, 0.0], -80.0).unwrap(),
+            ..Default::default()
+        };
+        let limb = SunSkyParams { complex_sun: true, ..default_sky };
+        let wide_limb = SunSkyParams {
+            sun: SunPosition::Direction(vec3(-0.2, 0.5, 0.3)),
+            complex_sun: true,
+            turbidity: 7.3,
+            sun_aperture_deg: 4.0,
+            sun_scale: 2.0,
             ..Default::default()
         };
         vec![
@@ -518,6 +592,27 @@ mod tests {
                     ([0.328599, 0.208811, 0.921097], [1.873420e+04, 1.341789e+04, 7.083308e+03]),
                 ],
             ),
+            (
+                limb,
+                vec![
+                    ([0.0, 0.0, 1.0], [3.513206e-02, 5.518135e-02, 1.050139e-01]),
+                    ([0.428571463, 0.285714298, 0.857142925], [2.634045e+04, 2.286790e+04, 1.859560e+04]),
+                    ([0.429483265, 0.287070274, 0.856233001], [2.534288e+04, 2.183223e+04, 1.753711e+04]),
+                    ([0.430393487, 0.288425237, 0.855319977], [2.121670e+04, 1.758755e+04, 1.329009e+04]),
+                    ([0.430734485, 0.288933098, 0.854976952], [1.660227e+04, 1.299392e+04, 8.935052e+03]),
+                ],
+            ),
+            (
+                wide_limb,
+                vec![
+                    ([-0.650944555, 0.650944555, 0.390566733], [4.487512e-01, 4.228699e-01, 3.572188e-01]),
+                    ([0.0, 0.980580676, 0.196116135], [5.468972e-01, 5.073165e-01, 4.121923e-01]),
+                    ([-0.324442834, 0.811107039, 0.486664265], [6.815899e+02, 5.401633e+02, 3.824895e+02]),
+                    ([-0.31464988, 0.818737686, 0.480274945], [6.520392e+02, 5.116767e+02, 3.563537e+02]),
+                    ([-0.304795593, 0.826208711, 0.473791987], [5.424033e+02, 4.088640e+02, 2.665351e+02]),
+                    ([-0.301084816, 0.828968883, 0.471336991], [4.231702e+02, 3.012265e+02, 1.781887e+02]),
+                ],
+            ),
         ]
     }
 
@@ -559,6 +654,39 @@ mod tests {
         let sky_alone = SunSky::new(&SunSkyParams { sun_scale: 0.0, ..params }).unwrap();
         crate::light::check_environment_sampling(&sky, &sky_alone, sun_part, 400_000);
         assert!(sky.sky_weight > 0.0 && sky.sky_weight < 1.0);
+    }
+
+    /// The limb-darkened disk sends what the uniform one does (midpoint rule over the disk,
+    /// in its own frame), and sampling stays unbiased with it.
+    #[test]
+    fn limb_darkening_keeps_the_suns_power() {
+        for aperture in [SUN_APERTURE_DEG, 4.0] {
+            let params = SunSkyParams {
+                sun: SunPosition::Direction(vec3(0.2, -0.4, 0.6)),
+                sun_aperture_deg: aperture,
+                complex_sun: true,
+                ..Default::default()
+            };
+            let sky = SunSky::new(&params).unwrap();
+            let limb = sky.limb.as_ref().unwrap();
+            let half = 0.5 * (aperture as f64).to_radians();
+            let (rings, sectors) = (2000, 32);
+            let mut integral = 0.0f64;
+            for i in 0..rings {
+                let a = half * (i as f64 + 0.5) / rings as f64;
+                for j in 0..sectors {
+                    let phi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / sectors as f64;
+                    let local = vec3((a.sin() * phi.cos()) as f32, (a.sin() * phi.sin()) as f32, a.cos() as f32);
+                    let d = sky.sun_frame.to_world(local).normalize();
+                    integral += sky.limb_darkened(limb, d).mean() as f64 * a.sin();
+                }
+            }
+            integral *= (half / rings as f64) * (2.0 * std::f64::consts::PI / sectors as f64);
+            let uniform = (sky.sun_radiance.mean() * 2.0 * PI * sky.sun_one_minus_cos) as f64;
+            assert!((integral / uniform - 1.0).abs() < 0.01, "aperture {aperture}: {integral} vs {uniform}");
+            let sky_alone = SunSky::new(&SunSkyParams { sun_scale: 0.0, ..params }).unwrap();
+            crate::light::check_environment_sampling(&sky, &sky_alone, integral, 200_000);
+        }
     }
 
     #[test]

@@ -914,12 +914,6 @@ impl Loader {
             Some(_) => SUN_APERTURE_DEG * self.float(n, "sun_radius_scale", 1.0)?,
             None => self.float(n, "sun_aperture", SUN_APERTURE_DEG)?,
         };
-        if self.boolean(n, "complex_sun", false)? {
-            self.warn_at(
-                n,
-                "complex_sun (limb darkening) is not implemented: the sun is a uniform disk of the same power",
-            );
-        }
         let to_world = if legacy {
             // 0.x skies are Y-up: turn the emitter's Z-up frame onto +Y.
             to_world.compose(&Transform::rotate([1.0, 0.0, 0.0], -90.0).expect("a rotation about x"))
@@ -933,6 +927,7 @@ impl Loader {
             sun_scale,
             sky_scale,
             sun_aperture_deg,
+            complex_sun: self.boolean(n, "complex_sun", false)?,
             to_world,
         };
         let sky = SunSky::new(&params).map_err(|e| self.err(n, format!("{ty}: {e}")))?;
@@ -1141,12 +1136,19 @@ mod tests {
         );
         assert_eq!(sun(off(3.0)), 0.0, "no sky in `sun`");
         assert!(sun(off(0.0)) > 0.0);
-        let (modern, warnings) = environment_of(
-            "v3",
-            r#"<scene version="3.0.0"><emitter type="sunsky"><vector name="sun_direction" value="0, 1, 1"/><boolean name="complex_sun" value="true"/></emitter></scene>"#,
-        );
+        let v3 = |complex: bool| {
+            environment_of(
+                "v3",
+                &format!(
+                    r#"<scene version="3.0.0"><emitter type="sunsky"><vector name="sun_direction" value="0, 1, 1"/><boolean name="complex_sun" value="{complex}"/></emitter></scene>"#
+                ),
+            )
+        };
+        let (modern, warnings) = v3(true);
         assert_eq!(modern(vec3(0.3, 0.0, -1.0)), 0.0, "Mitsuba 3: below the horizon is −z");
         assert!(modern(vec3(0.3, -1.0, 0.1)) > 0.0);
-        assert!(warnings.iter().any(|w| w.contains("complex_sun")), "{warnings:?}");
+        assert!(!warnings.iter().any(|w| w.contains("sun")), "{warnings:?}");
+        // Limb darkening: brighter than the uniform disk at the centre.
+        assert!(modern(vec3(0.0, 1.0, 1.0)) > 1.1 * v3(false).0(vec3(0.0, 1.0, 1.0)));
     }
 }
