@@ -144,9 +144,8 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
         }
     }
     lap("voxelise", &mut timings);
-    let chess = chessboard(&empty, true);
-    let edt = euclidean_squared(&empty, true);
-    let open = opening(&chess);
+    // Independent and each sequential: the Euclidean map beside the chessboard and opening.
+    let (edt, open) = rayon::join(|| euclidean_squared(&empty, true), || opening(&chessboard(&empty, true)));
     lap("distance and opening maps", &mut timings);
     let anchor_voxels: Vec<Option<usize>> = settings.anchors.iter().map(|a| nearest_empty_voxel(&empty, a)).collect();
     let anchors: Vec<usize> = anchor_voxels.iter().flatten().copied().collect();
