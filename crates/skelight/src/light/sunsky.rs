@@ -4,9 +4,9 @@
 //! turbidity and ground albedo and along a quintic Bézier curve in the cube root of the sun's
 //! elevation; the sun is a uniform disk whose irradiance comes from the model's table (Mitsuba
 //! 3's default), or with `complex_sun` a disk darkening towards its limb, of the same power.
-//! The tables (`data/sunsky.bin`, 148 KB) are derived from
-//! the datasets Mitsuba ships by `scripts/sunsky_data.py`; values agree with Mitsuba 3.9.1's
-//! `scalar_rgb` evaluation (tests below). The emitter's local frame is Z-up with X north.
+//! The tables (`data/sunsky.bin`, 148 KB) are derived from the datasets Mitsuba ships by
+//! `scripts/sunsky_data.py`; values agree with Mitsuba 3.9.1's `scalar_rgb` evaluation
+//! (tests below). The emitter's local frame is Z-up with X north.
 //!
 //! Sampling is ours, not Mitsuba's Gaussian mixture: the sky from a piecewise-constant table
 //! over the upper hemisphere, the sun uniformly in its cone, chosen by their powers.
