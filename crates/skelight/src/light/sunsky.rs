@@ -141,6 +141,13 @@ pub struct SunSky {
     radiance_integral: f32,
 }
 
+/// A direction's angle γ from the sun's centre: cos γ, and sin²γ (exact next to the centre,
+/// where 1 − cos γ in f32 loses its digits).
+struct ToSun {
+    cos: f32,
+    sin2: f32,
+}
+
 /// The tables as floats, checked once.
 struct Tables {
     sky_params: &'static [u8],
@@ -246,14 +253,20 @@ impl SunSky {
         self.sun.z < 0.0
     }
 
-    /// Sky radiance (without the sun) in local direction `d` (unit).
-    fn sky(&self, d: Vec3) -> Rgb {
+    /// Angle between local direction `d` (unit) and the sun's centre, measured once for
+    /// the sky, the disk test and the limb.
+    fn to_sun(&self, d: Vec3) -> ToSun {
+        ToSun { cos: d.dot(self.sun).clamp(-1.0, 1.0), sin2: d.cross(self.sun).length_squared() }
+    }
+
+    /// Sky radiance (without the sun) in local direction `d` (unit), at `to_sun` from it.
+    fn sky(&self, d: Vec3, to_sun: &ToSun) -> Rgb {
         let cos_theta = d.z;
         if cos_theta < 0.0 || self.sky_radiance.is_black() {
             return Rgb::BLACK;
         }
-        let cos_gamma = d.dot(self.sun).clamp(-1.0, 1.0);
-        let gamma = d.cross(self.sun).length().atan2(cos_gamma);
+        let cos_gamma = to_sun.cos;
+        let gamma = to_sun.sin2.sqrt().atan2(cos_gamma);
         let channel = |c: usize| {
             let [a, b, cc, dd, e, f, g, h, i] = self.sky_params[c];
             let c1 = 1.0 + a * (b / (cos_theta + 0.01)).exp();
@@ -265,30 +278,32 @@ impl SunSky {
         rgb(channel(0) * s.r, channel(1) * s.g, channel(2) * s.b)
     }
 
-    /// Whether local direction `d` (unit) lies in the sun's disk.
-    fn in_sun(&self, d: Vec3) -> bool {
-        d.dot(self.sun) > 0.0 && d.cross(self.sun).length_squared() <= self.sun_sin2
+    /// Whether a direction at `to_sun` from the sun's centre lies in its disk.
+    fn in_sun(&self, to_sun: &ToSun) -> bool {
+        to_sun.cos > 0.0 && to_sun.sin2 <= self.sun_sin2
     }
 
     fn eval_local(&self, d: Vec3) -> Rgb {
         if d.z < 0.0 {
             return Rgb::BLACK;
         }
+        let to_sun = self.to_sun(d);
         let sun = match &self.limb {
-            _ if !self.in_sun(d) => Rgb::BLACK,
+            _ if !self.in_sun(&to_sun) => Rgb::BLACK,
             None => self.sun_radiance,
-            Some(limb) => self.limb_darkened(limb, d),
+            Some(limb) => self.limb_darkened(limb, d, to_sun.sin2),
         };
-        self.sky(d) + sun
+        self.sky(d, &to_sun) + sun
     }
 
-    /// Radiance of the limb-darkened disk towards local direction `d` (in the disk).
-    fn limb_darkened(&self, limb: &[[f32; LIMB_SEGMENT_LEN]], d: Vec3) -> Rgb {
+    /// Radiance of the limb-darkened disk towards local direction `d` (in the disk), whose
+    /// angle γ from the disk's centre has sin²γ = `sin2_gamma`.
+    fn limb_darkened(&self, limb: &[[f32; LIMB_SEGMENT_LEN]], d: Vec3, sin2_gamma: f32) -> Rgb {
         let elevation = d.z.clamp(0.0, 1.0).asin();
         let segment = (((2.0 * elevation / PI).cbrt() * LIMB_SEGMENTS as f32) as usize).min(LIMB_SEGMENTS - 1);
         let x = elevation - 0.5 * PI * (segment as f32 / LIMB_SEGMENTS as f32).powi(3);
         // cos ψ: ψ the angle between the disk's centre and the seen point, from the sun.
-        let cos_psi = (1.0 - d.cross(self.sun).length_squared() / self.sun_sin2).max(0.0).sqrt();
+        let cos_psi = (1.0 - sin2_gamma / self.sun_sin2).max(0.0).sqrt();
         let coefficients = &limb[segment];
         let mut out = [0.0f32; 3];
         for (c, value) in out.iter_mut().enumerate() {
@@ -321,14 +336,15 @@ impl SunSky {
                 let mut brightest = 0.0f32;
                 for (a, b) in (0..9).map(|k| ((k % 3) as f32 * 0.5, (k / 3) as f32 * 0.5)) {
                     let uv = vec2((i as f32 + a) / TABLE_PHI as f32, (j as f32 + b) / TABLE_THETA as f32);
-                    brightest = brightest.max(self.sky(Self::table_direction(uv).0).max_component());
+                    let d = Self::table_direction(uv).0;
+                    brightest = brightest.max(self.sky(d, &self.to_sun(d)).max_component());
                 }
                 let (d, sin_theta) = Self::table_direction(vec2(
                     (i as f32 + 0.5) / TABLE_PHI as f32,
                     (j as f32 + 0.5) / TABLE_THETA as f32,
                 ));
                 weights[j * TABLE_PHI + i] = brightest * sin_theta;
-                integral += (self.sky(d).mean() * sin_theta * cell) as f64;
+                integral += (self.sky(d, &self.to_sun(d)).mean() * sin_theta * cell) as f64;
             }
         }
         (weights, integral as f32)
@@ -346,7 +362,7 @@ impl SunSky {
                 pdf += self.sky_weight * self.sky_table.pdf(vec2(phi, theta)) / (PI * PI * sin_theta);
             }
         }
-        if self.sky_weight < 1.0 && self.in_sun(d) {
+        if self.sky_weight < 1.0 && self.in_sun(&self.to_sun(d)) {
             pdf += (1.0 - self.sky_weight) / (2.0 * PI * self.sun_one_minus_cos);
         }
         pdf
@@ -678,7 +694,7 @@ mod tests {
                     let phi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / sectors as f64;
                     let local = vec3((a.sin() * phi.cos()) as f32, (a.sin() * phi.sin()) as f32, a.cos() as f32);
                     let d = sky.sun_frame.to_world(local).normalize();
-                    integral += sky.limb_darkened(limb, d).mean() as f64 * a.sin();
+                    integral += sky.limb_darkened(limb, d, sky.to_sun(d).sin2).mean() as f64 * a.sin();
                 }
             }
             integral *= (half / rings as f64) * (2.0 * std::f64::consts::PI / sectors as f64);
