@@ -51,38 +51,47 @@ fn best_of<T>(runs: usize, mut f: impl FnMut() -> (Duration, T)) -> (Duration, T
     best
 }
 
-/// Times building with `build` (best of 3) and tracing `rays` (best of 3).
-pub fn measure(
-    tris: &[BuildTriangle],
-    rays: &[Ray],
-    build: &dyn Fn(&[BuildTriangle]) -> Box<dyn Accelerator>,
-) -> RayResult {
-    let (build_time, accel) = best_of(3, || {
-        let t = Instant::now();
-        let a = build(tris);
-        (t.elapsed(), a)
-    });
-    let (closest, hits) = best_of(3, || {
-        let t = Instant::now();
-        let hits = rays
-            .par_chunks(4096)
-            .map(|c| c.iter().filter(|r| accel.intersect(r, &NoFilter).is_some()).count())
-            .sum::<usize>();
-        (t.elapsed(), hits)
-    });
-    let (any, _) = best_of(3, || {
-        let t = Instant::now();
-        let n = rays.par_chunks(4096).map(|c| c.iter().filter(|r| accel.occluded(r, &NoFilter)).count()).sum::<usize>();
-        (t.elapsed(), n)
-    });
-    let m = rays.len() as f64 / 1e6;
-    RayResult {
-        build: build_time,
-        closest_mrays: m / closest.as_secs_f64(),
-        any_mrays: m / any.as_secs_f64(),
-        hits,
-        structure: accel.describe(),
+/// Times building each backend (best of 3), then tracing `rays` with each, closest-hit
+/// and any-hit, in `rounds` rounds that take the backends in turn, keeping each one's best
+/// time. Taking turns spreads this machine's bursts of load over all backends, so their
+/// ratios hold even when the absolute figures move.
+pub fn measure(tris: &[BuildTriangle], rays: &[Ray], backends: &[(&str, Builder)], rounds: usize) -> Vec<RayResult> {
+    let built: Vec<(Duration, Box<dyn Accelerator>)> = backends
+        .iter()
+        .map(|(_, build)| {
+            best_of(3, || {
+                let t = Instant::now();
+                let a = build(tris);
+                (t.elapsed(), a)
+            })
+        })
+        .collect();
+    let mut best = vec![(Duration::MAX, Duration::MAX, 0usize); built.len()];
+    for _ in 0..rounds.max(1) {
+        for ((_, accel), best) in built.iter().zip(&mut best) {
+            let t = Instant::now();
+            let hits = rays
+                .par_chunks(4096)
+                .map(|c| c.iter().filter(|r| accel.intersect(r, &NoFilter).is_some()).count())
+                .sum::<usize>();
+            let closest = t.elapsed();
+            let t = Instant::now();
+            rays.par_chunks(4096).for_each(|c| c.iter().for_each(|r| _ = accel.occluded(r, &NoFilter)));
+            *best = (best.0.min(closest), best.1.min(t.elapsed()), hits);
+        }
     }
+    let m = rays.len() as f64 / 1e6;
+    built
+        .into_iter()
+        .zip(best)
+        .map(|((build, accel), (closest, any, hits))| RayResult {
+            build,
+            closest_mrays: m / closest.as_secs_f64(),
+            any_mrays: m / any.as_secs_f64(),
+            hits,
+            structure: accel.describe(),
+        })
+        .collect()
 }
 
 /// Builds an accelerator over the scene's triangles.

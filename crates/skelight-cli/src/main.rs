@@ -177,6 +177,9 @@ enum BenchKind {
         rays: usize,
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// Measurement rounds, each timing every backend in turn; the best of each is shown.
+        #[arg(long, default_value_t = 5)]
+        rounds: usize,
     },
     /// Time per stage and peak memory of the empty-space analysis (best of --runs).
     Skeleton {
@@ -351,7 +354,7 @@ fn bench(what: BenchKind) -> Result<()> {
                 AnalysisSettings { resolution, region: bounds, enclosed_only, ..AnalysisSettings::default() };
             bench::skeleton(&scene, &settings, runs.max(1))
         }
-        BenchKind::Rays { scenes, rays, threads } => {
+        BenchKind::Rays { scenes, rays, threads, rounds } => {
             rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().ok();
             println!(
                 "{:<28} {:>9} {:>8} {:>10} {:>13} {:>11} {:>7}",
@@ -362,8 +365,8 @@ fn bench(what: BenchKind) -> Result<()> {
                 let tris = scene.build_triangles();
                 let rs = bench::incoherent_rays(&tris, rays, 1);
                 let mut first: Option<(f64, f64, f64)> = None;
-                for (name, build) in bench::backends() {
-                    let r = bench::measure(&tris, &rs, build.as_ref());
+                let backends = bench::backends();
+                for ((name, _), r) in backends.iter().zip(bench::measure(&tris, &rs, &backends, rounds)) {
                     let label = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
                     let ratio = first
                         .map(|(b, c, a)| {
