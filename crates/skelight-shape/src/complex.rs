@@ -198,23 +198,21 @@ impl Complex {
     /// [`Complex::voxels_around`] the face at doubled-grid coordinates `p`.
     pub fn voxels_around_at(&self, p: [usize; 3]) -> Few<usize, 8> {
         let [w, h, d] = self.dims.map(|n| (n - 1) / 2);
-        // Along each axis, an odd coordinate 2a+1 lies in voxel a; an even one 2a in a−1 and a.
-        let options = |c: usize, n: usize| -> Few<usize, 2> {
-            let mut o = Few::new(0);
+        // Along each axis, the voxels lo..hi: an odd coordinate 2a+1 lies in voxel a, an
+        // even one 2a in a−1 and a (those of them inside the grid).
+        let range = |c: usize, n: usize| {
             if c & 1 == 1 {
-                o.push(c / 2);
+                (c / 2, c / 2 + 1)
             } else {
-                for v in [c / 2, c / 2 + 1].into_iter().filter(|&v| v >= 1 && v <= n) {
-                    o.push(v - 1);
-                }
+                ((c / 2).saturating_sub(1), (c / 2 + 1).min(n))
             }
-            o
         };
+        let ((x0, x1), (y0, y1), (z0, z1)) = (range(p[0], w), range(p[1], h), range(p[2], d));
         let mut out = Few::new(0);
-        for z in options(p[2], d) {
-            for y in options(p[1], h) {
-                for vx in options(p[0], w) {
-                    out.push((z * h + y) * w + vx);
+        for z in z0..z1 {
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    out.push((z * h + y) * w + x);
                 }
             }
         }
@@ -272,6 +270,31 @@ mod tests {
             g.set(x, y, z, true);
         }
         g
+    }
+
+    /// Every face's voxels are those whose closed cube [2a, 2a + 2] contains it on each axis.
+    #[test]
+    fn voxels_around_every_face_match_brute_force() {
+        let x = Complex::from_voxels(&voxels([3, 2, 4], &[]));
+        let [w, h, d] = [3, 2, 4];
+        for i in 0..x.cells.len() {
+            if !x.in_grid(i) {
+                continue;
+            }
+            let p = x.coords(i);
+            let mut expected = Vec::new();
+            for z in 0..d {
+                for y in 0..h {
+                    for vx in 0..w {
+                        let v = [vx, y, z];
+                        if (0..3).all(|a| p[a] >= 2 * v[a] && p[a] <= 2 * v[a] + 2) {
+                            expected.push((z * h + y) * w + vx);
+                        }
+                    }
+                }
+            }
+            assert_eq!(x.voxels_around(i).collect::<Vec<_>>(), expected, "face {p:?}");
+        }
     }
 
     #[test]

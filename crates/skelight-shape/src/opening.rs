@@ -102,9 +102,23 @@ fn dilate_line(
 pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
     let spec = l1.spec;
     let d = &l1.data;
-    let mut by_radius: Vec<(u32, u32)> =
-        (0..d.len() as u32).filter(|&i| d[i as usize] > 0).map(|i| (d[i as usize], i)).collect();
-    by_radius.sort_unstable_by_key(|&(r, _)| std::cmp::Reverse(r));
+    // Centres by radius (a counting sort: radii are small), largest first.
+    let max_radius = d.iter().copied().max().unwrap_or(0) as usize;
+    assert!(
+        max_radius <= spec.dims.iter().sum::<usize>(),
+        "l1_opening wants an L1 distance map with a finite border (from `l1(set, true)`)"
+    );
+    let mut first = vec![0u32; max_radius + 2];
+    d.iter().for_each(|&r| first[r as usize + 1] += 1);
+    for r in 1..first.len() {
+        first[r] += first[r - 1];
+    }
+    let mut centres = vec![0u32; d.len()];
+    let mut fill = first.clone();
+    for (i, &r) in d.iter().enumerate() {
+        centres[fill[r as usize] as usize] = i as u32;
+        fill[r as usize] += 1;
+    }
     let mut opening = vec![0u32; d.len()];
     // Largest budget left (+1) with which any walk so far reached a voxel; 0 = never.
     let mut reached = vec![0u32; d.len()];
@@ -119,9 +133,9 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
             list.push(j);
         }
     };
-    for group in by_radius.chunk_by(|a, b| a.0 == b.0) {
-        let r = group[0].0;
-        for &(_, i) in group {
+    for r in (1..=max_radius).rev() {
+        let r = r as u32;
+        for &i in &centres[first[r as usize] as usize..first[r as usize + 1] as usize] {
             enter(i as usize, r, r, &mut frontier);
         }
         // Budget b = r − steps; a voxel at L1 distance < r from a centre gets b ≥ 1.
