@@ -113,9 +113,12 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
     for r in 1..first.len() {
         first[r] += first[r - 1];
     }
-    let mut centres = vec![0u32; d.len()];
+    // Voxels outside the set (radius 0) are no centres: `first` then counts from radius 1.
+    let outside = first[1];
+    first.iter_mut().for_each(|f| *f = f.saturating_sub(outside));
+    let mut centres = vec![0u32; first[max_radius + 1] as usize];
     let mut fill = first.clone();
-    for (i, &r) in d.iter().enumerate() {
+    for (i, &r) in d.iter().enumerate().filter(|&(_, &r)| r > 0) {
         centres[fill[r as usize] as usize] = i as u32;
         fill[r as usize] += 1;
     }
