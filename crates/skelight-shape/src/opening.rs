@@ -108,14 +108,13 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
         max_radius <= spec.dims.iter().sum::<usize>(),
         "l1_opening wants an L1 distance map with a finite border (from `l1(set, true)`)"
     );
+    // first[r]: where radius r starts among the centres (voxels outside the set, radius 0,
+    // are none).
     let mut first = vec![0u32; max_radius + 2];
-    d.iter().for_each(|&r| first[r as usize + 1] += 1);
+    d.iter().filter(|&&r| r > 0).for_each(|&r| first[r as usize + 1] += 1);
     for r in 1..first.len() {
         first[r] += first[r - 1];
     }
-    // Voxels outside the set (radius 0) are no centres: `first` then counts from radius 1.
-    let outside = first[1];
-    first.iter_mut().for_each(|f| *f = f.saturating_sub(outside));
     let mut centres = vec![0u32; first[max_radius + 1] as usize];
     let mut fill = first.clone();
     for (i, &r) in d.iter().enumerate().filter(|&(_, &r)| r > 0) {
