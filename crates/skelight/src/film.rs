@@ -25,6 +25,13 @@ impl Filter {
             Filter::Gaussian { stddev } => 4.0 * stddev,
         }
     }
+    /// First and last pixel (along one axis) whose centre lies within the filter's reach
+    /// of a sample at coordinate `x`.
+    #[inline]
+    pub fn footprint(&self, x: f32) -> (i64, i64) {
+        let r = self.radius();
+        ((x - r - 0.5).ceil() as i64, (x + r - 0.5).floor() as i64)
+    }
     /// 1D profile at offset `x` pixels.
     #[inline]
     pub fn eval_1d(&self, x: f32) -> f32 {
@@ -86,9 +93,8 @@ impl FilmTile {
             self.rejected += 1;
             return;
         }
-        let r = self.filter.radius();
-        let (lx, hx) = ((pos.x - r - 0.5).ceil() as i64, (pos.x + r - 0.5).floor() as i64);
-        let (ly, hy) = ((pos.y - r - 0.5).ceil() as i64, (pos.y + r - 0.5).floor() as i64);
+        let (lx, hx) = self.filter.footprint(pos.x);
+        let (ly, hy) = self.filter.footprint(pos.y);
         let box_filter = self.filter == Filter::Box;
         for py in ly..=hy {
             let ty = py - self.y0;
@@ -158,55 +164,49 @@ impl Film {
     }
 
     pub fn merge_tile(&mut self, tile: &FilmTile) {
-        for ty in 0..tile.height {
-            let y = tile.y0 + ty as i64;
-            if y < 0 || y >= self.height as i64 {
-                continue;
-            }
-            for tx in 0..tile.width {
-                let x = tile.x0 + tx as i64;
-                if x < 0 || x >= self.width as i64 {
-                    continue;
-                }
-                let (i, j) = (y as usize * self.width + x as usize, ty * tile.width + tx);
-                for c in 0..3 {
-                    self.sum[i][c] += tile.sum[j][c];
-                    self.sum_sq[i][c] += tile.sum_sq[j][c];
-                }
-                self.weight[i] += tile.weight[j];
-            }
-        }
-        for &(pos, l) in &tile.splats {
-            self.add_splat(pos, l);
-        }
-        self.rejected += tile.rejected;
+        self.merge_tiles(std::slice::from_ref(tile));
     }
 
-    fn add_splat(&mut self, pos: Vec2, l: Rgb) {
-        let r = self.filter.radius();
-        let (lx, hx) = ((pos.x - r - 0.5).ceil() as i64, (pos.x + r - 0.5).floor() as i64);
-        let (ly, hy) = ((pos.y - r - 0.5).ceil() as i64, (pos.y + r - 0.5).floor() as i64);
-        // Normalise the footprint so each splat deposits exactly its value; the filter is
-        // separable, so the total is the product of the two 1D sums.
-        let wx = |px: i64| self.filter.eval_1d(px as f32 + 0.5 - pos.x);
-        let wy = |py: i64| self.filter.eval_1d(py as f32 + 0.5 - pos.y);
-        let total = (lx..=hx).map(wx).sum::<f32>() * (ly..=hy).map(wy).sum::<f32>();
-        if !(total > 0.0) {
+    /// Adds the tiles' samples and splats, in the order given, bands of rows in parallel:
+    /// every pixel receives its contributions in the same order as a merge one tile at a
+    /// time would give it, so the sums are the same to the bit.
+    pub fn merge_tiles(&mut self, tiles: &[FilmTile]) {
+        use rayon::prelude::*;
+        const BAND: usize = 16;
+        self.rejected += tiles.iter().map(|t| t.rejected).sum::<u64>();
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 {
             return;
         }
-        for py in ly.max(0)..=hy.min(self.height as i64 - 1) {
-            for px in lx.max(0)..=hx.min(self.width as i64 - 1) {
-                let w = wx(px) * wy(py);
-                if w <= 0.0 {
-                    continue;
+        // Each band's splats in merge order (a splat across a band edge goes to both).
+        let mut band_splats: Vec<Vec<(Vec2, Rgb)>> = vec![Vec::new(); h.div_ceil(BAND)];
+        for &(pos, l) in tiles.iter().flat_map(|t| &t.splats) {
+            let (ly, hy) = self.filter.footprint(pos.y);
+            let (ly, hy) = (ly.max(0), hy.min(h as i64 - 1));
+            if ly <= hy {
+                for band in &mut band_splats[ly as usize / BAND..=hy as usize / BAND] {
+                    band.push((pos, l));
                 }
-                let i = py as usize * self.width + px as usize;
-                let s = (w / total) as f64;
-                self.splat[i][0] += s * l.r as f64;
-                self.splat[i][1] += s * l.g as f64;
-                self.splat[i][2] += s * l.b as f64;
             }
         }
+        let filter = self.filter;
+        let n = BAND * w;
+        self.sum
+            .par_chunks_mut(n)
+            .zip(self.sum_sq.par_chunks_mut(n))
+            .zip(self.weight.par_chunks_mut(n))
+            .zip(self.splat.par_chunks_mut(n))
+            .zip(&band_splats)
+            .enumerate()
+            .for_each(|(b, ((((sum, sum_sq), weight), splat), splats))| {
+                let mut band = FilmBand { y0: b * BAND, width: w, sum, sum_sq, weight, splat };
+                for tile in tiles {
+                    band.add_tile(tile);
+                }
+                for &(pos, l) in splats {
+                    band.add_splat(filter, pos, l);
+                }
+            });
     }
 
     /// Current estimate: filtered camera samples plus splats averaged over light paths.
@@ -313,6 +313,74 @@ impl Film {
         }
         fill(&mut film.splat, &mut f64s);
         Ok(film)
+    }
+}
+
+/// Consecutive rows of a film's accumulators, from row `y0` on, merged by one task.
+struct FilmBand<'a> {
+    y0: usize,
+    width: usize,
+    sum: &'a mut [[f64; 3]],
+    sum_sq: &'a mut [[f64; 3]],
+    weight: &'a mut [f64],
+    splat: &'a mut [[f64; 3]],
+}
+
+impl FilmBand<'_> {
+    fn rows(&self) -> std::ops::Range<i64> {
+        self.y0 as i64..(self.y0 + self.weight.len() / self.width) as i64
+    }
+
+    /// The tile's camera samples on this band's rows.
+    fn add_tile(&mut self, tile: &FilmTile) {
+        let rows = self.rows();
+        for ty in 0..tile.height {
+            let y = tile.y0 + ty as i64;
+            if !rows.contains(&y) {
+                continue;
+            }
+            for tx in 0..tile.width {
+                let x = tile.x0 + tx as i64;
+                if x < 0 || x >= self.width as i64 {
+                    continue;
+                }
+                let (i, j) = ((y - rows.start) as usize * self.width + x as usize, ty * tile.width + tx);
+                for c in 0..3 {
+                    self.sum[i][c] += tile.sum[j][c];
+                    self.sum_sq[i][c] += tile.sum_sq[j][c];
+                }
+                self.weight[i] += tile.weight[j];
+            }
+        }
+    }
+
+    /// The part on this band's rows of a splat of `l` at `pos`, spread by `filter` so that
+    /// its whole footprint (on the film or not) receives exactly `l`.
+    fn add_splat(&mut self, filter: Filter, pos: Vec2, l: Rgb) {
+        let (lx, hx) = filter.footprint(pos.x);
+        let (ly, hy) = filter.footprint(pos.y);
+        // Normalise the footprint so each splat deposits exactly its value; the filter is
+        // separable, so the total is the product of the two 1D sums.
+        let wx = |px: i64| filter.eval_1d(px as f32 + 0.5 - pos.x);
+        let wy = |py: i64| filter.eval_1d(py as f32 + 0.5 - pos.y);
+        let total = (lx..=hx).map(wx).sum::<f32>() * (ly..=hy).map(wy).sum::<f32>();
+        if !(total > 0.0) {
+            return;
+        }
+        let rows = self.rows();
+        for py in ly.max(rows.start)..=hy.min(rows.end - 1) {
+            for px in lx.max(0)..=hx.min(self.width as i64 - 1) {
+                let w = wx(px) * wy(py);
+                if w <= 0.0 {
+                    continue;
+                }
+                let i = (py - rows.start) as usize * self.width + px as usize;
+                let s = (w / total) as f64;
+                self.splat[i][0] += s * l.r as f64;
+                self.splat[i][1] += s * l.g as f64;
+                self.splat[i][2] += s * l.b as f64;
+            }
+        }
     }
 }
 

@@ -8,7 +8,7 @@ mod common;
 use common::shared_dir;
 use skelight::integrator::ibpt::{ibpt_strategies, ChainWeight, MisChain, Side};
 use skelight::integrator::lt::camera_end_strategies;
-use skelight::integrator::mis::{all_strategies, weight, Heuristic, PathWeight, StrategySet, SubPath};
+use skelight::integrator::mis::{all_strategies, weight, Heuristic, Junction, PathWeight, StrategySet, SubPath};
 use skelight::integrator::subpath::{camera_subpath, light_subpath};
 use skelight::integrator::vertex::{Vertex, VertexKind};
 use skelight::material::TransportMode;
@@ -73,7 +73,7 @@ impl FullPath {
         let light: Vec<Vertex> = (0..s).map(|i| Vertex { pdf_fwd: l[i], pdf_rev: c[i], ..self.x[i] }).collect();
         let camera: Vec<Vertex> =
             (s..self.x.len()).rev().map(|i| Vertex { pdf_fwd: c[i], pdf_rev: l[i], ..self.x[i] }).collect();
-        weight(scene, SubPath::new(&light, None), SubPath::new(&camera, None), heuristic, strategies)
+        weight(scene, SubPath::new(&light, None), SubPath::new(&camera, None), &Junction::NONE, heuristic, strategies)
     }
 
     /// Whether the path carries light (no zero factor a density of zero could hide behind).
@@ -153,6 +153,7 @@ fn random_paths(scene: &Scene, count: usize) -> Vec<(FullPath, usize, f32)> {
                     scene,
                     SubPath::EMPTY,
                     SubPath::new(&camera[..camera.len() - 1], Some(&lv)),
+                    &Junction::NONE,
                     Heuristic::Balance,
                     &all_strategies,
                 );
@@ -171,10 +172,19 @@ fn random_paths(scene: &Scene, count: usize) -> Vec<(FullPath, usize, f32)> {
                 if !y.can_connect(scene) || !z.can_connect(scene) || z.kind != VertexKind::Surface {
                     continue;
                 }
+                // With the densities the join computes along with the BSDFs, as `bpt` does
+                // (compared below with densities evaluated afresh).
+                let jy = y.join(scene, &light[s - 2], z, TransportMode::Importance, true);
+                let jz = z.join(scene, &camera[t - 2], y, TransportMode::Radiance, true);
+                let junction = Junction {
+                    light_end: Some((jy.pdf_next, jy.pdf_prev)),
+                    camera_end: Some((jz.pdf_next, jz.pdf_prev)),
+                };
                 let w = weight(
                     scene,
                     SubPath::new(&light[..s], None),
                     SubPath::new(&camera[..t], None),
+                    &junction,
                     Heuristic::Balance,
                     &all_strategies,
                 );

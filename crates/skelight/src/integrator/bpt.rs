@@ -7,7 +7,7 @@ use std::cell::RefCell;
 
 use super::mis::{all_strategies, Heuristic, StrategySet};
 use super::strategies::{self, Weighting};
-use super::subpath::{camera_subpath, LightPaths};
+use super::subpath::camera_subpath;
 use super::vertex::Vertex;
 use super::{Integrator, Iteration};
 use crate::color::Rgb;
@@ -108,9 +108,9 @@ impl Integrator for Bpt {
     fn prepares_iterations(&self) -> bool {
         true
     }
-    fn prepare_iteration(&self, scene: &Scene, seed: u64, index: u64) -> Iteration {
+    fn prepare_iteration(&self, scene: &Scene, seed: u64, index: u64, into: &mut Iteration) {
         let pixels = scene.settings.width * scene.settings.height;
-        Iteration { light_paths: LightPaths::trace(scene, pixels, seed, index, self.max_depth(scene)) }
+        into.light_paths.trace(scene, pixels, seed, index, self.max_depth(scene));
     }
     fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile, it: &Iteration) {
         let pixel = y * scene.settings.width + x;

@@ -95,7 +95,7 @@ impl PathWeight for ChainWeight {
     fn weight(&self, scene: &Scene, light: SubPath, camera: SubPath) -> f32 {
         if self.window_start + light.len() + camera.len() == 2 {
             // A light seen directly: the special cases of `mis::weight` apply.
-            return mis::weight(scene, light, camera, HEURISTIC, &ibpt_strategies);
+            return mis::weight(scene, light, camera, &mis::Junction::NONE, HEURISTIC, &ibpt_strategies);
         }
         let (walk, other) = match self.side {
             Side::Camera => (camera, light),

@@ -75,9 +75,27 @@ pub fn all_strategies(_s: usize, _t: usize) -> bool {
     true
 }
 
+/// Densities a connection's ends computed along with their BSDF values ([`Vertex::join`]),
+/// handed to the weight so that it does not evaluate the BSDFs again: for the light end y,
+/// `(pdf_next, pdf_prev)` = densities of the camera end z and of y's predecessor; for the
+/// camera end z, those of y and of z's predecessor. `None` where not known.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Junction {
+    pub light_end: Option<(f32, f32)>,
+    pub camera_end: Option<(f32, f32)>,
+}
+
+impl Junction {
+    pub const NONE: Junction = Junction { light_end: None, camera_end: None };
+}
+
 /// How an estimator weighs the path made by joining a light and a camera sub-path.
 pub trait PathWeight {
     fn weight(&self, scene: &Scene, light: SubPath, camera: SubPath) -> f32;
+    /// [`PathWeight::weight`], given densities the connection computed already.
+    fn weight_joined(&self, scene: &Scene, light: SubPath, camera: SubPath, _junction: &Junction) -> f32 {
+        self.weight(scene, light, camera)
+    }
 }
 
 /// Densities through a specular lobe are recorded as 0; they cancel between strategies.
@@ -91,8 +109,16 @@ pub fn remap_delta(pdf: f32) -> f32 {
 }
 
 /// MIS weight of the path made by joining `light` (s vertices) and `camera` (t vertices),
-/// among the strategies in `strategies` that can make it.
-pub fn weight(scene: &Scene, light: SubPath, camera: SubPath, heuristic: Heuristic, strategies: StrategySet) -> f32 {
+/// among the strategies in `strategies` that can make it; `junction` holds densities at the
+/// connection already known.
+pub fn weight(
+    scene: &Scene,
+    light: SubPath,
+    camera: SubPath,
+    junction: &Junction,
+    heuristic: Heuristic,
+    strategies: StrategySet,
+) -> f32 {
     let (s, t) = (light.len(), camera.len());
     let n = s + t;
     if n < 2 {
@@ -108,36 +134,44 @@ pub fn weight(scene: &Scene, light: SubPath, camera: SubPath, heuristic: Heurist
             return if s == 0 { 1.0 } else { 0.0 };
         }
     }
+    // Each vertex's light-side and camera-side densities and whether the path can be split
+    // there, gathered once (on the stack for paths of up to `INLINE` vertices).
+    const INLINE: usize = 16;
+    let mut inline = [PathPoint::default(); INLINE];
+    let mut heap = Vec::new();
+    let points: &mut [PathPoint] = if n <= INLINE {
+        &mut inline[..n]
+    } else {
+        heap.resize(n, PathPoint::default());
+        &mut heap
+    };
+    for (i, p) in points.iter_mut().enumerate() {
+        let x = v(i);
+        let (l, c) = if i < s { (x.pdf_fwd, x.pdf_rev) } else { (x.pdf_rev, x.pdf_fwd) };
+        *p = PathPoint { l, c, splittable: x.connectible() };
+    }
     // Densities of the four vertices around the connection change with it.
-    let mut overrides: [(usize, f32, f32); 4] = [(usize::MAX, 0.0, 0.0); 4];
-    let mut o = 0;
     let mut set = |i: usize, l: Option<f32>, c: Option<f32>| {
-        let base = v(i);
-        let (bl, bc) = if i < s { (base.pdf_fwd, base.pdf_rev) } else { (base.pdf_rev, base.pdf_fwd) };
-        // Merge with an earlier override of the same vertex.
-        if let Some(slot) = overrides[..o].iter_mut().find(|e| e.0 == i) {
-            if let Some(l) = l {
-                slot.1 = l;
-            }
-            if let Some(c) = c {
-                slot.2 = c;
-            }
-        } else {
-            overrides[o] = (i, l.unwrap_or(bl), c.unwrap_or(bc));
-            o += 1;
+        if let Some(l) = l {
+            points[i].l = l;
+        }
+        if let Some(c) = c {
+            points[i].c = c;
         }
     };
     if s > 0 && t > 0 {
         let (y, z) = (v(s - 1), v(s));
         let z_prev = (t >= 2).then(|| v(s + 1));
-        set(s - 1, None, Some(z.pdf(scene, z_prev, y)));
+        let (cam, lig) = (junction.camera_end, junction.light_end);
+        set(s - 1, None, Some(cam.map_or_else(|| z.pdf(scene, z_prev, y), |d| d.0)));
         if s >= 2 {
-            set(s - 2, None, Some(y.pdf(scene, Some(z), v(s - 2))));
+            set(s - 2, None, Some(lig.map_or_else(|| y.pdf(scene, Some(z), v(s - 2)), |d| d.1)));
         }
-        let l_z = if s == 1 { y.pdf_light(scene, z) } else { y.pdf(scene, Some(v(s - 2)), z) };
+        let l_z =
+            if s == 1 { y.pdf_light(scene, z) } else { lig.map_or_else(|| y.pdf(scene, Some(v(s - 2)), z), |d| d.0) };
         set(s, Some(l_z), None);
         if let Some(zp) = z_prev {
-            set(s + 1, Some(z.pdf(scene, Some(y), zp)), None);
+            set(s + 1, Some(cam.map_or_else(|| z.pdf(scene, Some(y), zp), |d| d.1)), None);
         }
     } else if s == 0 {
         let x0 = v(0);
@@ -148,46 +182,46 @@ pub fn weight(scene: &Scene, light: SubPath, camera: SubPath, heuristic: Heurist
         set(n - 1, None, Some(scene.camera.pdf_we(scene.camera.forward).0));
         set(n - 2, None, Some(lens.pdf(scene, None, v(n - 2))));
     }
-    let overrides = &overrides[..o];
-    let densities = |i: usize| -> (f32, f32) {
-        if let Some(&(_, l, c)) = overrides.iter().find(|e| e.0 == i) {
-            return (l, c);
-        }
-        let x = v(i);
-        if i < s {
-            (x.pdf_fwd, x.pdf_rev)
-        } else {
-            (x.pdf_rev, x.pdf_fwd)
-        }
-    };
     // The two ends of this connection were joined through their non-specular parts,
     // whichever lobe their own sub-paths went on with.
-    let splittable = |i: usize| (s > 0 && t > 0 && (i == s - 1 || i == s)) || v(i).connectible();
+    if s > 0 && t > 0 {
+        points[s - 1].splittable = true;
+        points[s].splittable = true;
+    }
+    let points = &*points;
     let valid = |sp: usize| {
         strategies(sp, n - sp)
             && match sp {
                 0 => v(0).hittable(scene),
                 _ if sp == n => v(n - 1).hittable(scene),
-                _ => splittable(sp - 1) && splittable(sp),
+                _ => points[sp - 1].splittable && points[sp].splittable,
             }
     };
     let remap = remap_delta;
     let mut sum = 1.0f32;
     let mut r = 1.0f32;
     for i in (0..s).rev() {
-        let (l, c) = densities(i);
+        let PathPoint { l, c, .. } = points[i];
         r *= remap(c) / remap(l);
         if valid(i) {
             sum += heuristic.apply(r);
         }
     }
     r = 1.0;
-    for i in s..n {
-        let (l, c) = densities(i);
+    for (i, &PathPoint { l, c, .. }) in points.iter().enumerate().skip(s) {
         r *= remap(l) / remap(c);
         if valid(i + 1) {
             sum += heuristic.apply(r);
         }
     }
     1.0 / sum
+}
+
+/// A vertex of the path being weighed: its densities under light-side (`l`) and
+/// camera-side (`c`) sampling, and whether a connection may end there.
+#[derive(Clone, Copy, Default)]
+struct PathPoint {
+    l: f32,
+    c: f32,
+    splittable: bool,
 }

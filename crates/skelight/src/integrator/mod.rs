@@ -31,10 +31,9 @@ pub trait Integrator: Sync {
         false
     }
     /// Work shared by all pixels for sample index `index` (bpt's light sub-paths), made
-    /// before any of them is sampled. Must depend only on the scene, `seed` and `index`.
-    fn prepare_iteration(&self, _scene: &Scene, _seed: u64, _index: u64) -> Iteration {
-        Iteration::default()
-    }
+    /// before any of them is sampled, into `into` (whose buffers a previous iteration may
+    /// have left allocated, to be reused). Must depend only on the scene, `seed` and `index`.
+    fn prepare_iteration(&self, _scene: &Scene, _seed: u64, _index: u64, _into: &mut Iteration) {}
     /// Light paths traced per camera sample (normalises splats; 0 if none).
     fn splats_per_sample(&self) -> u64 {
         0
@@ -89,6 +88,17 @@ pub struct RenderResult {
 
 const TILE: usize = 32;
 
+/// Tile side for a `w`×`h` film: [`TILE`], or less on small films so that there are at least
+/// 64 tiles to balance between threads. Depends on the film only (not on the thread count),
+/// so splats merge in the same order and renders stay identical whatever the thread count.
+fn tile_size(w: usize, h: usize) -> usize {
+    let mut tile = TILE;
+    while tile > 8 && w.div_ceil(tile) * h.div_ceil(tile) < 64 {
+        tile /= 2;
+    }
+    tile
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     #[error("invalid render options: {0}")]
@@ -118,9 +128,10 @@ pub fn render(
         .build()
         .map_err(|e| RenderError::Threads(e.to_string()))?;
     let (mut film, mut done) = film.unwrap_or_else(|| (Film::new(w, h, scene.settings.filter), 0));
-    let tiles: Vec<(usize, usize, usize, usize)> = (0..h.div_ceil(TILE))
-        .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
-        .map(|(x, y)| (x, y, TILE.min(w - x), TILE.min(h - y)))
+    let tile = tile_size(w, h);
+    let tiles: Vec<(usize, usize, usize, usize)> = (0..h.div_ceil(tile))
+        .flat_map(|ty| (0..w.div_ceil(tile)).map(move |tx| (tx * tile, ty * tile)))
+        .map(|(x, y)| (x, y, tile.min(w - x), tile.min(h - y)))
         .collect();
     let start = Instant::now();
     // Passes of about 2^18 samples, aligned to multiples of `pass` samples per pixel from
@@ -129,6 +140,8 @@ pub fn render(
     // Estimators that prepare iterations keep a pass's worth of them in memory at once.
     let pass_samples = if integrator.prepares_iterations() { 65_536 } else { 262_144 };
     let pass = (pass_samples / (w * h).max(1)).clamp(1, 64) as u32;
+    // Kept from pass to pass, so that their buffers are allocated (and paged in) once.
+    let mut iterations: Vec<Iteration> = (0..pass).map(|_| Iteration::default()).collect();
     loop {
         let remaining = opts.spp.map(|s| s.saturating_sub(done)).unwrap_or(u32::MAX);
         if remaining == 0 {
@@ -141,8 +154,11 @@ pub fn render(
         let first = done;
         let results: Vec<FilmTile> = pool.install(|| {
             use rayon::prelude::*;
-            let iterations: Vec<Iteration> =
-                (first..first + n).map(|s| integrator.prepare_iteration(scene, opts.seed, s as u64)).collect();
+            let iterations = &mut iterations[..n as usize];
+            iterations.par_iter_mut().zip(first..first + n).for_each(|(it, s)| {
+                integrator.prepare_iteration(scene, opts.seed, s as u64, it);
+            });
+            let iterations = &*iterations;
             tiles
                 .par_iter()
                 .map(|&(x0, y0, tw, th)| {
@@ -161,9 +177,7 @@ pub fn render(
                 })
                 .collect()
         });
-        for tile in &results {
-            film.merge_tile(tile);
-        }
+        pool.install(|| film.merge_tiles(&results));
         film.splat_paths += integrator.splats_per_sample() * n as u64 * (w * h) as u64;
         done += n;
         let elapsed = start.elapsed();

@@ -2,7 +2,7 @@
 //! MIS-weighted contribution. `bpt` uses them all, `lt` those with t ≤ 1; skeleton-guided
 //! estimators reuse them with light vertices they resample.
 
-use super::mis::{self, Heuristic, PathWeight, StrategySet, SubPath};
+use super::mis::{self, Heuristic, Junction, PathWeight, StrategySet, SubPath};
 use super::vertex::{LensHit, Vertex, VertexKind};
 use crate::color::Rgb;
 use crate::geometry::{offset_origin, Ray};
@@ -20,7 +20,10 @@ pub struct Weighting<'a> {
 
 impl PathWeight for Weighting<'_> {
     fn weight(&self, scene: &Scene, light: SubPath, camera: SubPath) -> f32 {
-        mis::weight(scene, light, camera, self.heuristic, self.strategies)
+        mis::weight(scene, light, camera, &Junction::NONE, self.heuristic, self.strategies)
+    }
+    fn weight_joined(&self, scene: &Scene, light: SubPath, camera: SubPath, junction: &Junction) -> f32 {
+        mis::weight(scene, light, camera, junction, self.heuristic, self.strategies)
     }
 }
 
@@ -95,16 +98,17 @@ pub fn connect_to_light(scene: &Scene, camera: &[Vertex], t: usize, rng: &mut Rn
     };
     let mut lv = Vertex::light(li as u32, infinite, ls.p, n, Rgb::WHITE, 0.0);
     lv.pdf_fwd = lv.pdf_light_origin(scene);
-    let f = z.f(scene, &camera[t - 2], &lv, TransportMode::Radiance);
-    if f.is_black() {
+    let jz = z.join(scene, &camera[t - 2], &lv, TransportMode::Radiance, true);
+    if jz.f.is_black() {
         return Rgb::BLACK;
     }
     let shadow = if infinite { z.si.spawn_ray(ls.wi) } else { z.si.spawn_ray_to(ls.p) };
     if scene.occluded(&shadow) {
         return Rgb::BLACK;
     }
-    let weight = w.weight(scene, SubPath::new(&[], Some(&lv)), SubPath::new(&camera[..t], None));
-    z.beta * f * ls.radiance * (weight / (pmf * ls.pdf))
+    let junction = Junction { light_end: None, camera_end: Some((jz.pdf_next, jz.pdf_prev)) };
+    let weight = w.weight_joined(scene, SubPath::new(&[], Some(&lv)), SubPath::new(&camera[..t], None), &junction);
+    z.beta * jz.f * ls.radiance * (weight / (pmf * ls.pdf))
 }
 
 /// t = 1: connects light vertex `light[s − 1]` to a sampled lens point. Returns the film
@@ -126,16 +130,17 @@ pub fn connect_to_camera(
         return None;
     }
     let lens = Vertex::camera(cs.lens_point, cam.forward, Rgb::WHITE, cam.pdf_we(cam.forward).0);
-    let throughput = if s == 1 {
-        y.beta * y.emission(scene, cs.wi) * y.n().dot(cs.wi).abs()
+    let (throughput, junction) = if s == 1 {
+        (y.beta * y.emission(scene, cs.wi) * y.n().dot(cs.wi).abs(), Junction::NONE)
     } else {
-        y.beta * y.f(scene, &light[s - 2], &lens, TransportMode::Importance)
+        let jy = y.join(scene, &light[s - 2], &lens, TransportMode::Importance, true);
+        (y.beta * jy.f, Junction { light_end: Some((jy.pdf_next, jy.pdf_prev)), camera_end: None })
     };
     if throughput.is_black() || !visible(scene, y, &lens) {
         return None;
     }
     let pixels = (scene.settings.width * scene.settings.height) as f32;
-    let weight = w.weight(scene, SubPath::new(&light[..s], None), SubPath::new(&[], Some(&lens)));
+    let weight = w.weight_joined(scene, SubPath::new(&light[..s], None), SubPath::new(&[], Some(&lens)), &junction);
     Some((cs.raster, throughput * (cs.importance * pixels / cs.pdf * weight)))
 }
 
@@ -162,11 +167,13 @@ pub fn connect_vertices(
     if !(d2 > 0.0) {
         return Rgb::BLACK;
     }
-    let fy = y.f(scene, &light[s - 2], z, TransportMode::Importance);
-    let fz = z.f(scene, &camera[t - 2], y, TransportMode::Radiance);
-    let c = y.beta * fy * fz * z.beta / d2;
+    let jy = y.join(scene, &light[s - 2], z, TransportMode::Importance, true);
+    let jz = z.join(scene, &camera[t - 2], y, TransportMode::Radiance, true);
+    let c = y.beta * jy.f * jz.f * z.beta / d2;
     if c.is_black() || !visible(scene, z, y) {
         return Rgb::BLACK;
     }
-    c * w.weight(scene, SubPath::new(&light[..s], None), SubPath::new(&camera[..t], None))
+    let junction =
+        Junction { light_end: Some((jy.pdf_next, jy.pdf_prev)), camera_end: Some((jz.pdf_next, jz.pdf_prev)) };
+    c * w.weight_joined(scene, SubPath::new(&light[..s], None), SubPath::new(&camera[..t], None), &junction)
 }

@@ -233,9 +233,18 @@ impl LightStart {
     }
 }
 
-/// One light sub-path per pixel for one iteration, stored contiguously.
+/// One light sub-path per pixel for one iteration (eq. 185), in blocks of
+/// [`LightPaths::BLOCK`] consecutive paths, each traced and stored by one task: no block
+/// waits for another and nothing is copied into one big buffer afterwards.
 #[derive(Default)]
 pub struct LightPaths {
+    blocks: Vec<PathBlock>,
+    count: usize,
+}
+
+/// Consecutive light sub-paths stored contiguously.
+#[derive(Default)]
+struct PathBlock {
     vertices: Vec<Vertex>,
     /// Path i owns `vertices[starts[i]..starts[i + 1]]`.
     starts: Vec<u32>,
@@ -243,47 +252,12 @@ pub struct LightPaths {
     hit_starts: Vec<u32>,
 }
 
-impl LightPaths {
-    /// Traces `count` light sub-paths in parallel; path i draws its random numbers from
-    /// (seed, i, iteration) on a stream of its own, so the buffer is reproducible.
-    pub fn trace(scene: &Scene, count: usize, seed: u64, iteration: u64, max_depth: i32) -> LightPaths {
-        use rayon::prelude::*;
-        const CHUNK: usize = 1024;
-        let chunks: Vec<LightPaths> = (0..count.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                let mut out = LightPaths::default();
-                let (mut path, mut hits) = (Vec::new(), Vec::new());
-                for i in c * CHUNK..((c + 1) * CHUNK).min(count) {
-                    let mut rng = Rng::new(seed ^ LIGHT_STREAM, i as u64, iteration);
-                    light_subpath(scene, &mut rng, max_depth, &mut path, &mut hits);
-                    out.push(&path, &hits);
-                }
-                out
-            })
-            .collect();
-        let mut all = LightPaths::default();
-        all.vertices.reserve(chunks.iter().map(|c| c.vertices.len()).sum());
-        for c in chunks {
-            all.append(c);
-        }
-        all
-    }
-
-    /// Moves `other`'s paths after this buffer's, in one bulk copy.
-    fn append(&mut self, other: LightPaths) {
-        if other.is_empty() {
-            return;
-        }
-        if self.starts.is_empty() {
-            self.starts.push(0);
-            self.hit_starts.push(0);
-        }
-        let (v0, h0) = (self.vertices.len() as u32, self.lens_hits.len() as u32);
-        self.vertices.extend(other.vertices);
-        self.lens_hits.extend(other.lens_hits);
-        self.starts.extend(other.starts[1..].iter().map(|s| s + v0));
-        self.hit_starts.extend(other.hit_starts[1..].iter().map(|s| s + h0));
+impl PathBlock {
+    fn clear(&mut self) {
+        self.vertices.clear();
+        self.starts.clear();
+        self.lens_hits.clear();
+        self.hit_starts.clear();
     }
 
     fn push(&mut self, path: &[Vertex], hits: &[LensHit]) {
@@ -296,22 +270,51 @@ impl LightPaths {
         self.starts.push(self.vertices.len() as u32);
         self.hit_starts.push(self.lens_hits.len() as u32);
     }
+}
+
+impl LightPaths {
+    /// Paths per block: enough to amortise a task, few enough to balance two to sixteen
+    /// threads on small images.
+    pub const BLOCK: usize = 512;
+
+    /// Traces `count` light sub-paths in parallel, replacing those held (their memory is
+    /// reused); path i draws its random numbers from (seed, i, iteration) on a stream of its
+    /// own, so the buffer is reproducible.
+    pub fn trace(&mut self, scene: &Scene, count: usize, seed: u64, iteration: u64, max_depth: i32) {
+        use rayon::prelude::*;
+        self.blocks.resize_with(count.div_ceil(Self::BLOCK), PathBlock::default);
+        self.count = count;
+        self.blocks.par_iter_mut().enumerate().for_each(|(b, block)| {
+            block.clear();
+            let (mut path, mut hits) = (Vec::new(), Vec::new());
+            for i in b * Self::BLOCK..((b + 1) * Self::BLOCK).min(count) {
+                let mut rng = Rng::new(seed ^ LIGHT_STREAM, i as u64, iteration);
+                light_subpath(scene, &mut rng, max_depth, &mut path, &mut hits);
+                block.push(&path, &hits);
+            }
+        });
+    }
 
     pub fn len(&self) -> usize {
-        self.starts.len().saturating_sub(1)
+        self.count
     }
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+    fn block(&self, i: usize) -> (&PathBlock, usize) {
+        (&self.blocks[i / Self::BLOCK], i % Self::BLOCK)
+    }
     pub fn path(&self, i: usize) -> &[Vertex] {
-        &self.vertices[self.starts[i] as usize..self.starts[i + 1] as usize]
+        let (b, j) = self.block(i);
+        &b.vertices[b.starts[j] as usize..b.starts[j + 1] as usize]
     }
     pub fn lens_hits(&self, i: usize) -> &[LensHit] {
-        &self.lens_hits[self.hit_starts[i] as usize..self.hit_starts[i + 1] as usize]
+        let (b, j) = self.block(i);
+        &b.lens_hits[b.hit_starts[j] as usize..b.hit_starts[j + 1] as usize]
     }
     /// Every stored vertex (for estimators that resample among all of them).
-    pub fn vertices(&self) -> &[Vertex] {
-        &self.vertices
+    pub fn vertices(&self) -> impl Iterator<Item = &Vertex> {
+        self.blocks.iter().flat_map(|b| &b.vertices)
     }
 }
 

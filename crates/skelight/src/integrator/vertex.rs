@@ -219,18 +219,45 @@ impl Vertex {
     /// f(prev → self → next)·|cos| at a surface vertex; with `Importance`, corrected for
     /// shading normals (the adjoint BSDF).
     pub fn f(&self, scene: &Scene, prev: &Vertex, next: &Vertex, mode: TransportMode) -> Rgb {
+        self.join(scene, prev, next, mode, false).f
+    }
+
+    /// What a connection ending at this surface vertex needs from it, from one lookup of
+    /// the BSDF and one pair of local directions: [`Vertex::f`] and, when `densities`, the
+    /// two densities MIS needs at this end (see [`Joined`]). Black for other kinds.
+    pub fn join(&self, scene: &Scene, prev: &Vertex, next: &Vertex, mode: TransportMode, densities: bool) -> Joined {
         if self.kind != VertexKind::Surface {
-            return Rgb::BLACK;
+            return Joined { f: Rgb::BLACK, pdf_next: 0.0, pdf_prev: 0.0 };
         }
         let (wi, wo) = (self.dir_to(prev), self.dir_to(next));
         let bsdf = &scene.materials[self.si.material as usize].bsdf;
-        let ctx = BsdfCtx { uv: self.si.uv, mode };
-        let f = bsdf.eval(&ctx, self.si.frame.to_local(wi), self.si.frame.to_local(wo));
-        match mode {
+        let frame = &self.si.frame;
+        let (wi_local, wo_local) = (frame.to_local(wi), frame.to_local(wo));
+        let f = bsdf.eval(&BsdfCtx { uv: self.si.uv, mode }, wi_local, wo_local);
+        let f = match mode {
             TransportMode::Radiance => f,
             TransportMode::Importance => f * shading_normal_correction(&self.si, wi, wo),
+        };
+        if !densities {
+            return Joined { f, pdf_next: 0.0, pdf_prev: 0.0 };
         }
+        // Densities as `Vertex::pdf` computes them (radiance context, per unit area there).
+        let ctx = BsdfCtx { uv: self.si.uv, mode: TransportMode::Radiance };
+        let pdf_next = self.convert_density(bsdf.pdf(&ctx, wi_local, wo_local), next);
+        let pdf_prev = self.convert_density(bsdf.pdf(&ctx, wo_local, wi_local), prev);
+        Joined { f, pdf_next, pdf_prev }
     }
+}
+
+/// A surface vertex's part in a connection prev → vertex → next: f·|cos| (adjoint for
+/// importance) and the densities, per unit area, with which the vertex samples `next`
+/// having come from `prev`, and `prev` having come from `next`. Both densities are the
+/// same as [`Vertex::pdf`]'s, so MIS can take them instead of evaluating the BSDF again.
+#[derive(Clone, Copy, Debug)]
+pub struct Joined {
+    pub f: Rgb,
+    pub pdf_next: f32,
+    pub pdf_prev: f32,
 }
 
 /// Veach's correction for shading normals in importance transport (adjoint BSDF):
