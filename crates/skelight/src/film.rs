@@ -6,6 +6,14 @@ use crate::color::Rgb;
 use crate::imageio::Image;
 use crate::math::Vec2;
 
+/// ⌊x⌋ without a call into libm (which baseline x86-64 needs for `f32::floor`); meant for
+/// film coordinates (a saturating conversion clamps absurd ones).
+#[inline]
+fn floor(x: f32) -> i64 {
+    let i = x as i64;
+    i - i64::from((i as f32) > x)
+}
+
 /// Pixel reconstruction filter with Mitsuba's definitions.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Filter {
@@ -30,7 +38,7 @@ impl Filter {
     #[inline]
     pub fn footprint(&self, x: f32) -> (i64, i64) {
         let r = self.radius();
-        ((x - r - 0.5).ceil() as i64, (x + r - 0.5).floor() as i64)
+        (-floor(-(x - r - 0.5)), floor(x + r - 0.5))
     }
     /// 1D profile at offset `x` pixels.
     #[inline]
@@ -63,8 +71,10 @@ pub struct FilmTile {
     sum: Vec<[f64; 3]>,
     sum_sq: Vec<[f64; 3]>,
     weight: Vec<f64>,
-    /// Light-tracing contributions, kept as a list and splatted in order.
-    pub splats: Vec<(Vec2, Rgb)>,
+    /// Light-tracing contributions, splatted in order at the merge: one list per band of
+    /// [`MERGE_BAND`] film rows the splat's footprint reaches, so that bands merge in
+    /// parallel without sorting the splats out first.
+    splats: Vec<Vec<(Vec2, Rgb)>>,
     pub rejected: u64,
 }
 
@@ -124,13 +134,29 @@ impl FilmTile {
 
     /// Adds a light-tracing contribution anywhere on the film.
     pub fn splat(&mut self, pos: Vec2, l: Rgb) {
-        if l.is_finite() {
-            self.splats.push((pos, l));
-        } else {
+        if !l.is_finite() {
             self.rejected += 1;
+            return;
+        }
+        let (ly, hy) = self.filter.footprint(pos.y);
+        if hy < 0 || ly >= MAX_FILM_SIDE {
+            return; // on no film's rows
+        }
+        let bands = ly.max(0) as usize / MERGE_BAND..=hy as usize / MERGE_BAND;
+        if self.splats.len() <= *bands.end() {
+            self.splats.resize_with(bands.end() + 1, Vec::new);
+        }
+        for band in &mut self.splats[bands] {
+            band.push((pos, l));
         }
     }
 }
+
+/// The most pixels a film may have along a side.
+pub const MAX_FILM_SIDE: i64 = 1 << 16;
+
+/// Film rows merged by one task; tiles sort their splats into bands of this many rows.
+const MERGE_BAND: usize = 16;
 
 /// The whole image being accumulated.
 #[derive(Clone, Debug)]
@@ -172,39 +198,26 @@ impl Film {
     /// time would give it, so the sums are the same to the bit.
     pub fn merge_tiles(&mut self, tiles: &[FilmTile]) {
         use rayon::prelude::*;
-        const BAND: usize = 16;
         self.rejected += tiles.iter().map(|t| t.rejected).sum::<u64>();
-        let (w, h) = (self.width, self.height);
-        if w == 0 || h == 0 {
+        let (w, filter, n) = (self.width, self.filter, MERGE_BAND * self.width);
+        if n == 0 {
             return;
         }
-        // Each band's splats in merge order (a splat across a band edge goes to both).
-        let mut band_splats: Vec<Vec<(Vec2, Rgb)>> = vec![Vec::new(); h.div_ceil(BAND)];
-        for &(pos, l) in tiles.iter().flat_map(|t| &t.splats) {
-            let (ly, hy) = self.filter.footprint(pos.y);
-            let (ly, hy) = (ly.max(0), hy.min(h as i64 - 1));
-            if ly <= hy {
-                for band in &mut band_splats[ly as usize / BAND..=hy as usize / BAND] {
-                    band.push((pos, l));
-                }
-            }
-        }
-        let filter = self.filter;
-        let n = BAND * w;
         self.sum
             .par_chunks_mut(n)
             .zip(self.sum_sq.par_chunks_mut(n))
             .zip(self.weight.par_chunks_mut(n))
             .zip(self.splat.par_chunks_mut(n))
-            .zip(&band_splats)
             .enumerate()
-            .for_each(|(b, ((((sum, sum_sq), weight), splat), splats))| {
-                let mut band = FilmBand { y0: b * BAND, width: w, sum, sum_sq, weight, splat };
+            .for_each(|(b, (((sum, sum_sq), weight), splat))| {
+                let mut band = FilmBand { y0: b * MERGE_BAND, width: w, sum, sum_sq, weight, splat };
                 for tile in tiles {
                     band.add_tile(tile);
                 }
-                for &(pos, l) in splats {
-                    band.add_splat(filter, pos, l);
+                for tile in tiles {
+                    for &(pos, l) in tile.splats.get(b).into_iter().flatten() {
+                        band.add_splat(filter, pos, l);
+                    }
                 }
             });
     }
@@ -442,5 +455,47 @@ mod tests {
         film.merge_tile(&tile);
         film.splat_paths = 4;
         assert_eq!(film.image().get(0, 0).r, 2.0);
+    }
+
+    #[test]
+    fn splats_across_merge_bands_deposit_exactly_their_value_whatever_the_batching() {
+        // Gaussian footprints (radius 2) straddle the 16-row merge bands of a 40×50 film.
+        let f = Filter::Gaussian { stddev: 0.5 };
+        let (w, h) = (40, 50);
+        let mut rng = crate::sampling::Rng::new(7, 0, 0);
+        let mut tiles = Vec::new();
+        let mut total = 0.0f64;
+        for (x0, y0) in [(0, 0), (20, 0), (0, 25), (20, 25)] {
+            let mut tile = FilmTile::new(x0, y0, 20, 25, f);
+            for _ in 0..200 {
+                // Far enough inside the film for the whole footprint to land on it.
+                let pos = vec2(2.5 + 35.0 * rng.next_f32(), 2.5 + 45.0 * rng.next_f32());
+                let v = 1.0 + rng.next_f32();
+                tile.splat(pos, Rgb::splat(v));
+                total += v as f64;
+            }
+            tile.splat(vec2(-9.0, 1e9), Rgb::splat(5.0)); // on no film
+            tiles.push(tile);
+        }
+        let mut together = Film::new(w, h, f);
+        together.merge_tiles(&tiles);
+        together.splat_paths = 1;
+        let image = together.image();
+        let deposited: f64 =
+            (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| image.get(x, y).r as f64).sum();
+        assert!((deposited - total).abs() < 1e-4 * total, "deposited {deposited}, splatted {total}");
+        let mut one_by_one = Film::new(w, h, f);
+        for tile in &tiles {
+            one_by_one.merge_tile(tile);
+        }
+        one_by_one.splat_paths = 1;
+        assert_eq!(one_by_one.to_bytes(), together.to_bytes());
+    }
+
+    #[test]
+    fn floor_matches_the_standard_library() {
+        for x in [-2.5f32, -2.0, -0.5, -0.0, 0.0, 0.3, 1.0, 1.99, 65535.5] {
+            assert_eq!(floor(x), x.floor() as i64, "{x}");
+        }
     }
 }

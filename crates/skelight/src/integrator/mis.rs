@@ -57,6 +57,10 @@ impl<'a> SubPath<'a> {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+    /// The vertices from the sub-path's origin on.
+    pub fn iter(&self) -> impl DoubleEndedIterator<Item = &'a Vertex> {
+        self.stored.iter().chain(self.last)
+    }
     #[inline]
     pub fn get(&self, i: usize) -> &'a Vertex {
         if i < self.stored.len() {
@@ -145,10 +149,12 @@ pub fn weight(
         heap.resize(n, PathPoint::default());
         &mut heap
     };
-    for (i, p) in points.iter_mut().enumerate() {
-        let x = v(i);
-        let (l, c) = if i < s { (x.pdf_fwd, x.pdf_rev) } else { (x.pdf_rev, x.pdf_fwd) };
-        *p = PathPoint { l, c, splittable: x.connectible() };
+    let (light_side, camera_side) = points.split_at_mut(s);
+    for (p, x) in light_side.iter_mut().zip(light.iter()) {
+        *p = PathPoint { l: x.pdf_fwd, c: x.pdf_rev, splittable: x.connectible() };
+    }
+    for (p, x) in camera_side.iter_mut().zip(camera.iter().rev()) {
+        *p = PathPoint { l: x.pdf_rev, c: x.pdf_fwd, splittable: x.connectible() };
     }
     // Densities of the four vertices around the connection change with it.
     let mut set = |i: usize, l: Option<f32>, c: Option<f32>| {
@@ -189,13 +195,14 @@ pub fn weight(
         points[s].splittable = true;
     }
     let points = &*points;
+    // Whether strategy sp (sp light vertices) can make the path too.
     let valid = |sp: usize| {
-        strategies(sp, n - sp)
-            && match sp {
-                0 => v(0).hittable(scene),
-                _ if sp == n => v(n - 1).hittable(scene),
-                _ => points[sp - 1].splittable && points[sp].splittable,
-            }
+        let possible = if sp == 0 || sp == n {
+            v(sp.min(n - 1)).hittable(scene)
+        } else {
+            points[sp - 1].splittable && points[sp].splittable
+        };
+        possible && strategies(sp, n - sp)
     };
     let remap = remap_delta;
     let mut sum = 1.0f32;

@@ -7,7 +7,7 @@ pub mod shapes;
 
 use crate::camera::Camera;
 use crate::color::Rgb;
-use crate::film::Filter;
+use crate::film::{Filter, MAX_FILM_SIDE};
 use crate::geometry::{offset_origin, Accelerator, BuildTriangle, Bvh, Hit, HitFilter, Ray, Sphere};
 use crate::light::{AreaEmitter, Light};
 use crate::material::Material;
@@ -83,8 +83,8 @@ pub fn check_resolution(w: i64, h: i64) -> Result<(), String> {
     if w <= 0 || h <= 0 {
         return Err(format!("resolution {w}×{h} must be positive"));
     }
-    if w > 1 << 16 || h > 1 << 16 || w * h > 1 << 28 {
-        return Err(format!("resolution {w}×{h} is too large (at most 65536 on a side and 2^28 pixels)"));
+    if w > MAX_FILM_SIDE || h > MAX_FILM_SIDE || w * h > 1 << 28 {
+        return Err(format!("resolution {w}×{h} is too large (at most {MAX_FILM_SIDE} on a side and 2^28 pixels)"));
     }
     Ok(())
 }
