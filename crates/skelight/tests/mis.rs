@@ -115,10 +115,29 @@ fn ibpt_weight(scene: &Scene, path: &FullPath, s: usize) -> f32 {
     // The other side's origin, with that side's densities.
     let b = Vertex { pdf_fwd: walk[k].pdf_rev, pdf_rev: walk[k].pdf_fwd, ..walk[k] };
     let other_origin = SubPath::new(&[], Some(&b));
+    // Explicit strategies: the connection's own densities at a_{k−1}, as the estimator hands
+    // them over, must weigh the path as densities evaluated afresh do.
+    let joined = |light: SubPath, camera: SubPath| {
+        let fresh = w.weight(scene, light, camera);
+        let (aj, prev) = (&walk[k - 1], &walk[k.saturating_sub(2)]);
+        if k < 2 || aj.kind != VertexKind::Surface {
+            return fresh;
+        }
+        let mode = if side == Side::Camera { TransportMode::Radiance } else { TransportMode::Importance };
+        let j = aj.join(scene, prev, &b, mode, true);
+        let densities = Some((j.pdf_next, j.pdf_prev));
+        let junction = match side {
+            Side::Camera => Junction { camera_end: densities, light_end: None },
+            Side::Light => Junction { light_end: densities, camera_end: None },
+        };
+        let known = w.weight_joined(scene, light, camera, &junction);
+        assert!((known - fresh).abs() <= 1e-4 * fresh.max(1e-2), "ibpt s = {s}: joined {known}, fresh {fresh}");
+        known
+    };
     match s {
         0 => w.weight(scene, SubPath::EMPTY, implicit()),
-        1 => w.weight(scene, other_origin, stored_to(k)),
-        _ if s == k => w.weight(scene, stored_to(k), other_origin),
+        1 => joined(other_origin, stored_to(k)),
+        _ if s == k => joined(stored_to(k), other_origin),
         _ => w.weight(scene, implicit(), SubPath::EMPTY),
     }
 }

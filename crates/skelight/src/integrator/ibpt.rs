@@ -12,7 +12,7 @@
 //! F_k/O_k (A hits a_k by chance), Π_{m=1}^{k−1} O_m/F_m (the other side's explicit
 //! strategy) and that times O_0/F_0 (the other side hits a_0 by chance).
 
-use super::mis::{self, remap_delta, Heuristic, PathWeight, SubPath};
+use super::mis::{self, remap_delta, Heuristic, Junction, PathWeight, SubPath};
 use super::strategies;
 use super::subpath::{camera_subpath_start, max_vertices, random_walk, start_light_subpath, VertexSink};
 use super::vertex::{LensHit, Vertex, VertexKind};
@@ -93,9 +93,13 @@ fn origin_density(scene: &Scene, v: &Vertex) -> f32 {
 
 impl PathWeight for ChainWeight {
     fn weight(&self, scene: &Scene, light: SubPath, camera: SubPath) -> f32 {
+        self.weight_joined(scene, light, camera, &Junction::NONE)
+    }
+
+    fn weight_joined(&self, scene: &Scene, light: SubPath, camera: SubPath, junction: &Junction) -> f32 {
         if self.window_start + light.len() + camera.len() == 2 {
             // A light seen directly: the special cases of `mis::weight` apply.
-            return mis::weight(scene, light, camera, &mis::Junction::NONE, HEURISTIC, &ibpt_strategies);
+            return mis::weight(scene, light, camera, &Junction::NONE, HEURISTIC, &ibpt_strategies);
         }
         let (walk, other) = match self.side {
             Side::Camera => (camera, light),
@@ -113,10 +117,18 @@ impl PathWeight for ChainWeight {
         if other.len() == 1 {
             // Explicit: a_j joined to the other side's origin b.
             let (b, aj, prev) = (other.get(0), at(end), at(end - 1));
-            chain.fold(end - 1, aj.pdf(scene, Some(b), prev), prev.pdf_fwd, first_splittable);
+            // a_j's densities towards b and back to its predecessor, if the connection has
+            // them already.
+            let known = match self.side {
+                Side::Camera => junction.camera_end,
+                Side::Light => junction.light_end,
+            };
+            let back = known.map_or_else(|| aj.pdf(scene, Some(b), prev), |d| d.1);
+            chain.fold(end - 1, back, prev.pdf_fwd, first_splittable);
             chain.fold(end, b.pdf(scene, None, aj), aj.pdf_fwd, first_splittable);
             let implicit = if b.hittable(scene) {
-                HEURISTIC.apply(remap_delta(aj.pdf(scene, Some(prev), b)) / remap_delta(origin_density(scene, b)))
+                let towards_b = known.map_or_else(|| aj.pdf(scene, Some(prev), b), |d| d.0);
+                HEURISTIC.apply(remap_delta(towards_b) / remap_delta(origin_density(scene, b)))
             } else {
                 0.0
             };
