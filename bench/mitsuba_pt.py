@@ -2,7 +2,7 @@
 """Mitsuba 3 path-tracing throughput on a scene, for `skelight bench render` to be compared with.
 
 Usage: bench/mitsuba_pt.py SCENE.xml --spp N --max-depth D [--variant llvm_ad_rgb] [-D name=value ...]
-Needs `pip install mitsuba` (and Debian's libllvm19 for the llvm variant). The first render
+Needs `pip install mitsuba numpy` (and Debian's libllvm19 for the llvm variant). The first render
 compiles kernels, so the time of a second, identical render is reported.
 """
 import argparse
