@@ -195,12 +195,14 @@ pub fn weight(
         points[s].splittable = true;
     }
     let points = &*points;
-    // Whether strategy sp (sp light vertices) can make the path too.
+    // Whether strategy sp (sp light vertices) can make the path too; the two ends are
+    // asked once, not per strategy.
+    let (first_hittable, last_hittable) = (v(0).hittable(scene), v(n - 1).hittable(scene));
     let valid = |sp: usize| {
-        let possible = if sp == 0 || sp == n {
-            v(sp.min(n - 1)).hittable(scene)
-        } else {
-            points[sp - 1].splittable && points[sp].splittable
+        let possible = match sp {
+            0 => first_hittable,
+            _ if sp == n => last_hittable,
+            _ => points[sp - 1].splittable && points[sp].splittable,
         };
         possible && strategies(sp, n - sp)
     };
