@@ -92,10 +92,6 @@ fn origin_density(scene: &Scene, v: &Vertex) -> f32 {
 }
 
 impl PathWeight for ChainWeight {
-    fn weight(&self, scene: &Scene, light: SubPath, camera: SubPath) -> f32 {
-        self.weight_joined(scene, light, camera, &Junction::NONE)
-    }
-
     fn weight_joined(&self, scene: &Scene, light: SubPath, camera: SubPath, junction: &Junction) -> f32 {
         if self.window_start + light.len() + camera.len() == 2 {
             // A light seen directly: the special cases of `mis::weight` apply.
@@ -123,11 +119,11 @@ impl PathWeight for ChainWeight {
                 Side::Camera => junction.camera_end,
                 Side::Light => junction.light_end,
             };
-            let back = known.map_or_else(|| aj.pdf(scene, Some(b), prev), |d| d.1);
+            let back = known.map_or_else(|| aj.pdf(scene, Some(b), prev), |d| d.prev);
             chain.fold(end - 1, back, prev.pdf_fwd, first_splittable);
             chain.fold(end, b.pdf(scene, None, aj), aj.pdf_fwd, first_splittable);
             let implicit = if b.hittable(scene) {
-                let towards_b = known.map_or_else(|| aj.pdf(scene, Some(prev), b), |d| d.0);
+                let towards_b = known.map_or_else(|| aj.pdf(scene, Some(prev), b), |d| d.next);
                 HEURISTIC.apply(remap_delta(towards_b) / remap_delta(origin_density(scene, b)))
             } else {
                 0.0

@@ -8,7 +8,7 @@
 //! Densities through a specular vertex are recorded as 0 and count as 1 here: they appear in
 //! every strategy that can make the path, so they cancel.
 
-use super::vertex::Vertex;
+use super::vertex::{EndDensities, Vertex};
 use crate::scene::Scene;
 
 /// How strategies' densities combine into weights (Veach's heuristics).
@@ -80,13 +80,13 @@ pub fn all_strategies(_s: usize, _t: usize) -> bool {
 }
 
 /// Densities a connection's ends computed along with their BSDF values ([`Vertex::join`]),
-/// handed to the weight so that it does not evaluate the BSDFs again: for the light end y,
-/// `(pdf_next, pdf_prev)` = densities of the camera end z and of y's predecessor; for the
-/// camera end z, those of y and of z's predecessor. `None` where not known.
+/// handed to the weight so that it does not evaluate the BSDFs again: at the light end y,
+/// `next` is the camera end z and `prev` y's predecessor; at the camera end z, `next` is y
+/// and `prev` z's predecessor. `None` where not known (an end that is not a surface).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Junction {
-    pub light_end: Option<(f32, f32)>,
-    pub camera_end: Option<(f32, f32)>,
+    pub light_end: Option<EndDensities>,
+    pub camera_end: Option<EndDensities>,
 }
 
 impl Junction {
@@ -95,10 +95,11 @@ impl Junction {
 
 /// How an estimator weighs the path made by joining a light and a camera sub-path.
 pub trait PathWeight {
-    fn weight(&self, scene: &Scene, light: SubPath, camera: SubPath) -> f32;
-    /// [`PathWeight::weight`], given densities the connection computed already.
-    fn weight_joined(&self, scene: &Scene, light: SubPath, camera: SubPath, _junction: &Junction) -> f32 {
-        self.weight(scene, light, camera)
+    /// The weight, given densities the connection computed already.
+    fn weight_joined(&self, scene: &Scene, light: SubPath, camera: SubPath, junction: &Junction) -> f32;
+    /// The weight, every density evaluated as needed.
+    fn weight(&self, scene: &Scene, light: SubPath, camera: SubPath) -> f32 {
+        self.weight_joined(scene, light, camera, &Junction::NONE)
     }
 }
 
@@ -169,15 +170,18 @@ pub fn weight(
         let (y, z) = (v(s - 1), v(s));
         let z_prev = (t >= 2).then(|| v(s + 1));
         let (cam, lig) = (junction.camera_end, junction.light_end);
-        set(s - 1, None, Some(cam.map_or_else(|| z.pdf(scene, z_prev, y), |d| d.0)));
+        set(s - 1, None, Some(cam.map_or_else(|| z.pdf(scene, z_prev, y), |d| d.next)));
         if s >= 2 {
-            set(s - 2, None, Some(lig.map_or_else(|| y.pdf(scene, Some(z), v(s - 2)), |d| d.1)));
+            set(s - 2, None, Some(lig.map_or_else(|| y.pdf(scene, Some(z), v(s - 2)), |d| d.prev)));
         }
-        let l_z =
-            if s == 1 { y.pdf_light(scene, z) } else { lig.map_or_else(|| y.pdf(scene, Some(v(s - 2)), z), |d| d.0) };
+        let l_z = if s == 1 {
+            y.pdf_light(scene, z)
+        } else {
+            lig.map_or_else(|| y.pdf(scene, Some(v(s - 2)), z), |d| d.next)
+        };
         set(s, Some(l_z), None);
         if let Some(zp) = z_prev {
-            set(s + 1, Some(cam.map_or_else(|| z.pdf(scene, Some(y), zp), |d| d.1)), None);
+            set(s + 1, Some(cam.map_or_else(|| z.pdf(scene, Some(y), zp), |d| d.prev)), None);
         }
     } else if s == 0 {
         let x0 = v(0);

@@ -19,9 +19,6 @@ pub struct Weighting<'a> {
 }
 
 impl PathWeight for Weighting<'_> {
-    fn weight(&self, scene: &Scene, light: SubPath, camera: SubPath) -> f32 {
-        mis::weight(scene, light, camera, &Junction::NONE, self.heuristic, self.strategies)
-    }
     fn weight_joined(&self, scene: &Scene, light: SubPath, camera: SubPath, junction: &Junction) -> f32 {
         mis::weight(scene, light, camera, junction, self.heuristic, self.strategies)
     }
@@ -106,7 +103,7 @@ pub fn connect_to_light(scene: &Scene, camera: &[Vertex], t: usize, rng: &mut Rn
     if scene.occluded(&shadow) {
         return Rgb::BLACK;
     }
-    let junction = Junction { light_end: None, camera_end: Some((jz.pdf_next, jz.pdf_prev)) };
+    let junction = Junction { light_end: None, camera_end: Some(jz.densities) };
     let weight = w.weight_joined(scene, SubPath::new(&[], Some(&lv)), SubPath::new(&camera[..t], None), &junction);
     z.beta * jz.f * ls.radiance * (weight / (pmf * ls.pdf))
 }
@@ -134,7 +131,7 @@ pub fn connect_to_camera(
         (y.beta * y.emission(scene, cs.wi) * y.n().dot(cs.wi).abs(), Junction::NONE)
     } else {
         let jy = y.join(scene, &light[s - 2], &lens, TransportMode::Importance, true);
-        (y.beta * jy.f, Junction { light_end: Some((jy.pdf_next, jy.pdf_prev)), camera_end: None })
+        (y.beta * jy.f, Junction { light_end: Some(jy.densities), camera_end: None })
     };
     if throughput.is_black() || !visible(scene, y, &lens) {
         return None;
@@ -173,7 +170,6 @@ pub fn connect_vertices(
     if c.is_black() || !visible(scene, z, y) {
         return Rgb::BLACK;
     }
-    let junction =
-        Junction { light_end: Some((jy.pdf_next, jy.pdf_prev)), camera_end: Some((jz.pdf_next, jz.pdf_prev)) };
+    let junction = Junction { light_end: Some(jy.densities), camera_end: Some(jz.densities) };
     c * w.weight_joined(scene, SubPath::new(&light[..s], None), SubPath::new(&camera[..t], None), &junction)
 }

@@ -7,7 +7,7 @@
 //! sampling (`mis`) needs nothing else.
 
 use crate::color::Rgb;
-use crate::material::{BsdfCtx, BsdfModel, TransportMode};
+use crate::material::{Bsdf, BsdfCtx, BsdfModel, TransportMode};
 use crate::math::{vec2, vec3, Frame, Vec2, Vec3, PI};
 use crate::scene::{Scene, SurfaceInteraction};
 
@@ -180,10 +180,8 @@ impl Vertex {
             VertexKind::Surface => {
                 let Some(prev) = prev else { return 0.0 };
                 let bsdf = &scene.materials[self.si.material as usize].bsdf;
-                let ctx = BsdfCtx { uv: self.si.uv, mode: TransportMode::Radiance };
                 let f = &self.si.frame;
-                let pdf = bsdf.pdf(&ctx, f.to_local(self.dir_to(prev)), f.to_local(self.dir_to(next)));
-                self.convert_density(pdf, next)
+                self.bsdf_density(bsdf, f.to_local(self.dir_to(prev)), f.to_local(self.dir_to(next)), next)
             }
             VertexKind::Escaped => 0.0,
         }
@@ -227,7 +225,7 @@ impl Vertex {
     /// two densities MIS needs at this end (see [`Joined`]). Black for other kinds.
     pub fn join(&self, scene: &Scene, prev: &Vertex, next: &Vertex, mode: TransportMode, densities: bool) -> Joined {
         if self.kind != VertexKind::Surface {
-            return Joined { f: Rgb::BLACK, pdf_next: 0.0, pdf_prev: 0.0 };
+            return Joined { f: Rgb::BLACK, densities: EndDensities::default() };
         }
         let (wi, wo) = (self.dir_to(prev), self.dir_to(next));
         let bsdf = &scene.materials[self.si.material as usize].bsdf;
@@ -239,25 +237,39 @@ impl Vertex {
             TransportMode::Importance => f * shading_normal_correction(&self.si, wi, wo),
         };
         if !densities {
-            return Joined { f, pdf_next: 0.0, pdf_prev: 0.0 };
+            return Joined { f, densities: EndDensities::default() };
         }
-        // Densities as `Vertex::pdf` computes them (radiance context, per unit area there).
+        let densities = EndDensities {
+            next: self.bsdf_density(bsdf, wi_local, wo_local, next),
+            prev: self.bsdf_density(bsdf, wo_local, wi_local, prev),
+        };
+        Joined { f, densities }
+    }
+
+    /// Density per unit area at `to` with which this surface vertex's BSDF, sampled from
+    /// local direction `wi`, produces local direction `wo` towards `to` (radiance context,
+    /// as sub-paths record it).
+    fn bsdf_density(&self, bsdf: &Bsdf, wi: Vec3, wo: Vec3, to: &Vertex) -> f32 {
         let ctx = BsdfCtx { uv: self.si.uv, mode: TransportMode::Radiance };
-        let pdf_next = self.convert_density(bsdf.pdf(&ctx, wi_local, wo_local), next);
-        let pdf_prev = self.convert_density(bsdf.pdf(&ctx, wo_local, wi_local), prev);
-        Joined { f, pdf_next, pdf_prev }
+        self.convert_density(bsdf.pdf(&ctx, wi, wo), to)
     }
 }
 
 /// A surface vertex's part in a connection prev → vertex → next: f·|cos| (adjoint for
-/// importance) and the densities, per unit area, with which the vertex samples `next`
-/// having come from `prev`, and `prev` having come from `next`. Both densities are the
-/// same as [`Vertex::pdf`]'s, so MIS can take them instead of evaluating the BSDF again.
+/// importance) and its two MIS densities.
 #[derive(Clone, Copy, Debug)]
 pub struct Joined {
     pub f: Rgb,
-    pub pdf_next: f32,
-    pub pdf_prev: f32,
+    pub densities: EndDensities,
+}
+
+/// The densities, per unit area, with which a connection's end vertex samples `next` having
+/// come from `prev`, and `prev` having come from `next`: the same as [`Vertex::pdf`]'s, so
+/// MIS can take them instead of evaluating the BSDF again.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EndDensities {
+    pub next: f32,
+    pub prev: f32,
 }
 
 /// Veach's correction for shading normals in importance transport (adjoint BSDF):
