@@ -3,7 +3,7 @@
 //! and bidirectional methods connect to.
 
 use crate::geometry::Ray;
-use crate::math::{vec2, vec3, Transform, Vec2, Vec3};
+use crate::math::{vec2, vec3, Affine, Transform, Vec2, Vec3};
 use crate::sampling::concentric_disk;
 
 /// Which field of view the `fov` value measures.
@@ -39,6 +39,9 @@ pub struct Camera {
     pub near_clip: f32,
     pub position: Vec3,
     pub forward: Vec3,
+    /// `to_world` and its inverse in single precision: the per-sample transforms.
+    local_to_world: Affine,
+    world_to_local: Affine,
     fov_deg: f32,
     fov_axis: FovAxis,
 }
@@ -108,6 +111,8 @@ impl Camera {
             near_clip,
             position,
             forward,
+            local_to_world: Affine::of(&to_world.m),
+            world_to_local: Affine::of(&to_world.inv),
             fov_deg,
             fov_axis: axis,
         }
@@ -157,14 +162,13 @@ impl Camera {
             (Vec3::ZERO, d.normalize())
         };
         let o = o + d * (self.near_clip / d.z);
-        Ray::new(self.to_world.point(o), self.to_world.vector(d).normalize())
+        Ray::new(self.local_to_world.point(o), self.local_to_world.vector(d).normalize())
     }
 
     /// Film position (pixels) that a world direction leaving lens point `lens_world` maps to.
     pub fn raster_of(&self, lens_world: Vec3, dir_world: Vec3) -> Option<Vec2> {
-        let inv = self.to_world.inverse();
-        let o = inv.point(lens_world);
-        let d = inv.vector(dir_world);
+        let o = self.world_to_local.point(lens_world);
+        let d = self.world_to_local.vector(dir_world);
         if d.z <= 0.0 {
             return None;
         }
@@ -186,8 +190,7 @@ impl Camera {
         if self.aperture_radius <= 0.0 {
             return None;
         }
-        let inv = self.to_world.inverse();
-        let (o, d) = (inv.point(ray.o), inv.vector(ray.d));
+        let (o, d) = (self.world_to_local.point(ray.o), self.world_to_local.vector(ray.d));
         // Arriving from the front means travelling towards −z in camera space.
         if d.z >= 0.0 {
             return None;
@@ -200,7 +203,7 @@ impl Camera {
         if p.x * p.x + p.y * p.y > self.aperture_radius * self.aperture_radius {
             return None;
         }
-        let lens_point = self.to_world.point(vec3(p.x, p.y, 0.0));
+        let lens_point = self.local_to_world.point(vec3(p.x, p.y, 0.0));
         let raster = self.raster_of(lens_point, -ray.d)?;
         Some((t, lens_point, raster))
     }
@@ -231,7 +234,7 @@ impl Camera {
         } else {
             Vec3::ZERO
         };
-        let lens_point = self.to_world.point(lens_local);
+        let lens_point = self.local_to_world.point(lens_local);
         let d = lens_point - p;
         let dist2 = d.length_squared();
         if !(dist2 > 0.0) {

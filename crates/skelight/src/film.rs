@@ -43,20 +43,136 @@ impl Filter {
     /// 1D profile at offset `x` pixels.
     #[inline]
     pub fn eval_1d(&self, x: f32) -> f32 {
+        self.profile().eval(x)
+    }
+
+    /// The pixels a sample at `pos` reaches and their weights, each axis's weights worked
+    /// out once per sample rather than once per pixel (a Gaussian's exponentials are most
+    /// of a splat's cost otherwise).
+    #[inline]
+    pub fn footprint_of(&self, pos: Vec2) -> Footprint {
+        let (x, y) = (self.footprint(pos.x), self.footprint(pos.y));
+        // The box filter weighs every pixel of its footprint 1: no taps to work out.
+        let taps = (*self != Filter::Box).then(|| {
+            let profile = self.profile();
+            (Taps::new(profile, x, pos.x), Taps::new(profile, y, pos.y))
+        });
+        Footprint { x, y, taps }
+    }
+
+    /// The profile with its per-filter constants worked out.
+    #[inline]
+    fn profile(&self) -> Profile {
         match *self {
-            Filter::Box => {
+            Filter::Box => Profile::Box,
+            Filter::Tent { radius } => Profile::Tent { radius },
+            Filter::Gaussian { stddev } => {
+                let a = -0.5 / (stddev * stddev);
+                let r = 4.0 * stddev;
+                Profile::Gaussian { a, floor: (a * r * r).exp() }
+            }
+        }
+    }
+}
+
+/// A filter's 1D profile, ready to evaluate.
+#[derive(Clone, Copy)]
+enum Profile {
+    Box,
+    Tent {
+        radius: f32,
+    },
+    /// exp(a x²) shifted down by its value at the radius, `floor`.
+    Gaussian {
+        a: f32,
+        floor: f32,
+    },
+}
+
+impl Profile {
+    #[inline]
+    fn eval(self, x: f32) -> f32 {
+        match self {
+            Profile::Box => {
                 if x.abs() <= 0.5 {
                     1.0
                 } else {
                     0.0
                 }
             }
-            Filter::Tent { radius } => (1.0 - x.abs() / radius).max(0.0),
-            Filter::Gaussian { stddev } => {
-                let a = -0.5 / (stddev * stddev);
-                let r = 4.0 * stddev;
-                ((a * x * x).exp() - (a * r * r).exp()).max(0.0)
+            Profile::Tent { radius } => (1.0 - x.abs() / radius).max(0.0),
+            Profile::Gaussian { a, floor } => ((a * x * x).exp() - floor).max(0.0),
+        }
+    }
+}
+
+/// The pixels a sample reaches, `x.0..=x.1` by `y.0..=y.1`, and its filter's weights
+/// there (see [`Filter::footprint_of`]).
+pub struct Footprint {
+    pub x: (i64, i64),
+    pub y: (i64, i64),
+    taps: Option<(Taps, Taps)>,
+}
+
+impl Footprint {
+    /// The weight of pixel (`px`, `py`), inside the footprint.
+    #[inline]
+    pub fn weight(&self, px: i64, py: i64) -> f32 {
+        self.taps.as_ref().map_or(1.0, |(wx, wy)| wx.at(px) * wy.at(py))
+    }
+
+    /// The sum of the weights over the whole footprint (the filter is separable).
+    pub fn total(&self) -> f32 {
+        match &self.taps {
+            Some((wx, wy)) => wx.total() * wy.total(),
+            None => ((self.x.1 - self.x.0 + 1) * (self.y.1 - self.y.0 + 1)).max(0) as f32,
+        }
+    }
+}
+
+/// A filter's weights along one axis of a footprint; on the stack unless the footprint is
+/// unusually wide.
+struct Taps {
+    lo: i64,
+    n: usize,
+    inline: [f32; Taps::INLINE],
+    spilled: Vec<f32>,
+}
+
+impl Taps {
+    const INLINE: usize = 8;
+
+    /// The weights of pixels `lo..=hi` for a sample at coordinate `at`.
+    #[inline]
+    fn new(profile: Profile, (lo, hi): (i64, i64), at: f32) -> Taps {
+        let n = (hi - lo + 1).max(0) as usize;
+        let mut taps = Taps { lo, n, inline: [0.0; Taps::INLINE], spilled: Vec::new() };
+        let weight = |p: i64| profile.eval(p as f32 + 0.5 - at);
+        if n <= Taps::INLINE {
+            for (w, p) in taps.inline.iter_mut().zip(lo..=hi) {
+                *w = weight(p);
             }
+        } else {
+            taps.spilled = (lo..=hi).map(weight).collect();
+        }
+        taps
+    }
+
+    #[inline]
+    fn at(&self, p: i64) -> f32 {
+        let i = (p - self.lo) as usize;
+        if self.spilled.is_empty() {
+            self.inline[i]
+        } else {
+            self.spilled[i]
+        }
+    }
+
+    fn total(&self) -> f32 {
+        if self.spilled.is_empty() {
+            self.inline[..self.n].iter().sum()
+        } else {
+            self.spilled.iter().sum()
         }
     }
 }
@@ -103,21 +219,19 @@ impl FilmTile {
             self.rejected += 1;
             return;
         }
-        let (lx, hx) = self.filter.footprint(pos.x);
-        let (ly, hy) = self.filter.footprint(pos.y);
-        let box_filter = self.filter == Filter::Box;
+        let footprint = self.filter.footprint_of(pos);
+        let ((lx, hx), (ly, hy)) = (footprint.x, footprint.y);
         for py in ly..=hy {
             let ty = py - self.y0;
             if ty < 0 || ty >= self.height as i64 {
                 continue;
             }
-            let wy = if box_filter { 1.0 } else { self.filter.eval_1d(py as f32 + 0.5 - pos.y) };
             for px in lx..=hx {
                 let tx = px - self.x0;
                 if tx < 0 || tx >= self.width as i64 {
                     continue;
                 }
-                let w = if box_filter { 1.0 } else { wy * self.filter.eval_1d(px as f32 + 0.5 - pos.x) };
+                let w = footprint.weight(px, py);
                 if w <= 0.0 {
                     continue;
                 }
@@ -370,20 +484,17 @@ impl FilmBand<'_> {
     /// The part on this band's rows of a splat of `l` at `pos`, spread by `filter` so that
     /// its whole footprint (on the film or not) receives exactly `l`.
     fn add_splat(&mut self, filter: Filter, pos: Vec2, l: Rgb) {
-        let (lx, hx) = filter.footprint(pos.x);
-        let (ly, hy) = filter.footprint(pos.y);
-        // Normalise the footprint so each splat deposits exactly its value; the filter is
-        // separable, so the total is the product of the two 1D sums.
-        let wx = |px: i64| filter.eval_1d(px as f32 + 0.5 - pos.x);
-        let wy = |py: i64| filter.eval_1d(py as f32 + 0.5 - pos.y);
-        let total = (lx..=hx).map(wx).sum::<f32>() * (ly..=hy).map(wy).sum::<f32>();
+        // Normalise the footprint so each splat deposits exactly its value.
+        let footprint = filter.footprint_of(pos);
+        let ((lx, hx), (ly, hy)) = (footprint.x, footprint.y);
+        let total = footprint.total();
         if !(total > 0.0) {
             return;
         }
         let rows = self.rows();
         for py in ly.max(rows.start)..=hy.min(rows.end - 1) {
             for px in lx.max(0)..=hx.min(self.width as i64 - 1) {
-                let w = wx(px) * wy(py);
+                let w = footprint.weight(px, py);
                 if w <= 0.0 {
                     continue;
                 }

@@ -295,6 +295,31 @@ impl Frame {
     }
 }
 
+/// The affine part of a [`Transform`] in single precision, for per-sample use (camera rays):
+/// `point(v) = origin + x·v.x + y·v.y + z·v.z`. A projective last row is ignored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Affine {
+    pub origin: Vec3,
+    pub x: Vec3,
+    pub y: Vec3,
+    pub z: Vec3,
+}
+
+impl Affine {
+    pub fn of(m: &[[f64; 4]; 4]) -> Affine {
+        let column = |j: usize| vec3(m[0][j] as f32, m[1][j] as f32, m[2][j] as f32);
+        Affine { origin: column(3), x: column(0), y: column(1), z: column(2) }
+    }
+    #[inline]
+    pub fn vector(&self, v: Vec3) -> Vec3 {
+        self.x * v.x + self.y * v.y + self.z * v.z
+    }
+    #[inline]
+    pub fn point(&self, v: Vec3) -> Vec3 {
+        self.origin + self.vector(v)
+    }
+}
+
 /// Affine or projective 4×4 transform kept with its inverse.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Transform {

@@ -70,8 +70,26 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     if a == 0.0 && b == 0.0 {
         return vec2(0.0, 0.0);
     }
-    let (r, phi) = if a * a > b * b { (a, (PI / 4.0) * (b / a)) } else { (b, PI / 2.0 - (PI / 4.0) * (a / b)) };
-    vec2(r * phi.cos(), r * phi.sin())
+    // φ = π/4 · b/a, or π/2 − π/4 · a/b whose cosine and sine swap those of π/4 · a/b:
+    // both reduce to one angle within ±π/4, where short polynomials are exact to f32.
+    if a * a > b * b {
+        let (sin, cos) = sin_cos_quarter((PI / 4.0) * (b / a));
+        vec2(a * cos, a * sin)
+    } else {
+        let (sin, cos) = sin_cos_quarter((PI / 4.0) * (a / b));
+        vec2(b * sin, b * cos)
+    }
+}
+
+/// Sine and cosine of `x` in [−π/4, π/4] (Cephes' single-precision minimax polynomials,
+/// within 2 ulp there): a libm call each costs several times as much, and disk and
+/// hemisphere sampling never need a wider range.
+#[inline]
+pub fn sin_cos_quarter(x: f32) -> (f32, f32) {
+    let x2 = x * x;
+    let sin = x + x * x2 * (-1.666_665_5e-1 + x2 * (8.332_161e-3 + x2 * -1.951_529_6e-4));
+    let cos = 1.0 - 0.5 * x2 + x2 * x2 * (4.166_664_6e-2 + x2 * (-1.388_731_6e-3 + x2 * 2.443_315_7e-5));
+    (sin, cos)
 }
 
 #[inline]
@@ -185,6 +203,10 @@ impl Distribution1D {
     #[inline]
     pub fn sample_discrete(&self, u: f32) -> (usize, f32, f32) {
         let n = self.func.len();
+        if n == 1 {
+            // A single light or triangle, common enough to skip the search (same result).
+            return (0, 1.0, u.clamp(0.0, 0.999_999_94));
+        }
         // Largest i with cdf[i] <= u.
         let i = (self.cdf.partition_point(|&c| c <= u).saturating_sub(1)).min(n - 1);
         let mut i = i;
@@ -236,6 +258,19 @@ impl Distribution2D {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quarter_sine_and_cosine_match_libm() {
+        let mut worst = 0.0f32;
+        for i in -100_000..=100_000 {
+            let x = (PI / 4.0) * i as f32 / 100_000.0;
+            let (sin, cos) = sin_cos_quarter(x);
+            let (s64, c64) = (x as f64).sin_cos();
+            worst = worst.max((sin as f64 - s64).abs() as f32).max((cos as f64 - c64).abs() as f32);
+        }
+        // Two units in the last place of values up to 1.
+        assert!(worst <= 2.0 * f32::EPSILON, "worst error {worst:e}");
+    }
 
     #[test]
     fn adjacent_seeds_are_uncorrelated() {
@@ -295,16 +330,33 @@ mod tests {
         assert!((total - 1.0).abs() < 1e-4);
     }
 
+    /// One bin (a scene's only light, a light's only triangle): the sample itself, as the
+    /// search would give it for a two-bin distribution whose second bin is empty.
+    #[test]
+    fn single_bin_passes_the_sample_through() {
+        let (one, two) = (Distribution1D::new(&[3.0]), Distribution1D::new(&[3.0, 0.0]));
+        for u in [0.0, 0.25, 0.5, 0.999, 1.0] {
+            assert_eq!(one.sample_discrete(u), two.sample_discrete(u), "u = {u}");
+        }
+    }
+
     #[test]
     fn warps_stay_on_their_domains() {
         let mut rng = Rng::new(11, 0, 0);
-        for _ in 0..1000 {
+        for _ in 0..100_000 {
             let u = rng.next_2d();
             let d = cosine_hemisphere(u);
             assert!(d.z >= 0.0 && (d.length() - 1.0).abs() < 1e-4);
             assert!((uniform_sphere(u).length() - 1.0).abs() < 1e-4);
             let b = uniform_triangle(u);
             assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6);
+            // The disk mapping keeps each coordinate's sign where it is not tiny.
+            let d = concentric_disk(u);
+            assert!(d.x * d.x + d.y * d.y <= 1.0 + 4.0 * f32::EPSILON);
+            let (a, b) = (2.0 * u.x - 1.0, 2.0 * u.y - 1.0);
+            if a.abs() > 1e-3 && b.abs() > 1e-3 {
+                assert_eq!((d.x > 0.0, d.y > 0.0), (a > 0.0, b > 0.0), "u = {u:?} gave {d:?}");
+            }
         }
     }
 }

@@ -124,8 +124,8 @@ fn ibpt_weight(scene: &Scene, path: &FullPath, s: usize) -> f32 {
             return fresh;
         }
         let mode = if side == Side::Camera { TransportMode::Radiance } else { TransportMode::Importance };
-        let j = aj.join(scene, prev, &b, mode, true);
-        let densities = Some(j.densities);
+        let j = aj.join(scene, prev, &b, mode);
+        let densities = Some(aj.end_densities(scene, &j, prev, &b));
         let junction = match side {
             Side::Camera => Junction { camera_end: densities, light_end: None },
             Side::Light => Junction { light_end: densities, camera_end: None },
@@ -194,9 +194,12 @@ fn random_paths(scene: &Scene, count: usize) -> Vec<(FullPath, usize, f32)> {
                 }
                 // With the densities the join computes along with the BSDFs, as `bpt` does
                 // (compared below with densities evaluated afresh).
-                let jy = y.join(scene, &light[s - 2], z, TransportMode::Importance, true);
-                let jz = z.join(scene, &camera[t - 2], y, TransportMode::Radiance, true);
-                let junction = Junction { light_end: Some(jy.densities), camera_end: Some(jz.densities) };
+                let jy = y.join(scene, &light[s - 2], z, TransportMode::Importance);
+                let jz = z.join(scene, &camera[t - 2], y, TransportMode::Radiance);
+                let junction = Junction {
+                    light_end: Some(y.end_densities(scene, &jy, &light[s - 2], z)),
+                    camera_end: Some(z.end_densities(scene, &jz, &camera[t - 2], y)),
+                };
                 let w = weight(
                     scene,
                     SubPath::new(&light[..s], None),

@@ -95,7 +95,7 @@ pub fn connect_to_light(scene: &Scene, camera: &[Vertex], t: usize, rng: &mut Rn
     };
     let mut lv = Vertex::light(li as u32, infinite, ls.p, n, Rgb::WHITE, 0.0);
     lv.pdf_fwd = lv.pdf_light_origin(scene);
-    let jz = z.join(scene, &camera[t - 2], &lv, TransportMode::Radiance, true);
+    let jz = z.join(scene, &camera[t - 2], &lv, TransportMode::Radiance);
     if jz.f.is_black() {
         return Rgb::BLACK;
     }
@@ -103,7 +103,8 @@ pub fn connect_to_light(scene: &Scene, camera: &[Vertex], t: usize, rng: &mut Rn
     if scene.occluded(&shadow) {
         return Rgb::BLACK;
     }
-    let junction = Junction { light_end: None, camera_end: Some(jz.densities) };
+    let camera_end = z.end_densities(scene, &jz, &camera[t - 2], &lv);
+    let junction = Junction { light_end: None, camera_end: Some(camera_end) };
     let weight = w.weight_joined(scene, SubPath::new(&[], Some(&lv)), SubPath::new(&camera[..t], None), &junction);
     z.beta * jz.f * ls.radiance * (weight / (pmf * ls.pdf))
 }
@@ -127,15 +128,19 @@ pub fn connect_to_camera(
         return None;
     }
     let lens = Vertex::camera(cs.lens_point, cam.forward, Rgb::WHITE, cam.pdf_we(cam.forward).0);
-    let (throughput, junction) = if s == 1 {
-        (y.beta * y.emission(scene, cs.wi) * y.n().dot(cs.wi).abs(), Junction::NONE)
+    let (throughput, joined) = if s == 1 {
+        (y.beta * y.emission(scene, cs.wi) * y.n().dot(cs.wi).abs(), None)
     } else {
-        let jy = y.join(scene, &light[s - 2], &lens, TransportMode::Importance, true);
-        (y.beta * jy.f, Junction { light_end: Some(jy.densities), camera_end: None })
+        let jy = y.join(scene, &light[s - 2], &lens, TransportMode::Importance);
+        (y.beta * jy.f, Some(jy))
     };
     if throughput.is_black() || !visible(scene, y, &lens) {
         return None;
     }
+    let junction = match joined {
+        Some(jy) => Junction { light_end: Some(y.end_densities(scene, &jy, &light[s - 2], &lens)), camera_end: None },
+        None => Junction::NONE,
+    };
     let pixels = (scene.settings.width * scene.settings.height) as f32;
     let weight = w.weight_joined(scene, SubPath::new(&light[..s], None), SubPath::new(&[], Some(&lens)), &junction);
     Some((cs.raster, throughput * (cs.importance * pixels / cs.pdf * weight)))
@@ -164,12 +169,15 @@ pub fn connect_vertices(
     if !(d2 > 0.0) {
         return Rgb::BLACK;
     }
-    let jy = y.join(scene, &light[s - 2], z, TransportMode::Importance, true);
-    let jz = z.join(scene, &camera[t - 2], y, TransportMode::Radiance, true);
+    let jy = y.join(scene, &light[s - 2], z, TransportMode::Importance);
+    let jz = z.join(scene, &camera[t - 2], y, TransportMode::Radiance);
     let c = y.beta * jy.f * jz.f * z.beta / d2;
     if c.is_black() || !visible(scene, z, y) {
         return Rgb::BLACK;
     }
-    let junction = Junction { light_end: Some(jy.densities), camera_end: Some(jz.densities) };
+    let junction = Junction {
+        light_end: Some(y.end_densities(scene, &jy, &light[s - 2], z)),
+        camera_end: Some(z.end_densities(scene, &jz, &camera[t - 2], y)),
+    };
     c * w.weight_joined(scene, SubPath::new(&light[..s], None), SubPath::new(&camera[..t], None), &junction)
 }

@@ -217,15 +217,16 @@ impl Vertex {
     /// f(prev → self → next)·|cos| at a surface vertex; with `Importance`, corrected for
     /// shading normals (the adjoint BSDF).
     pub fn f(&self, scene: &Scene, prev: &Vertex, next: &Vertex, mode: TransportMode) -> Rgb {
-        self.join(scene, prev, next, mode, false).f
+        self.join(scene, prev, next, mode).f
     }
 
-    /// What a connection ending at this surface vertex needs from it, from one lookup of
-    /// the BSDF and one pair of local directions: [`Vertex::f`] and, when `densities`, the
-    /// two densities MIS needs at this end (see [`Joined`]). Black for other kinds.
-    pub fn join(&self, scene: &Scene, prev: &Vertex, next: &Vertex, mode: TransportMode, densities: bool) -> Joined {
+    /// What a connection ending at this surface vertex needs from it: [`Vertex::f`], and the
+    /// local directions from which [`Vertex::end_densities`] gives the two densities MIS
+    /// needs at this end, asked for only once the connection is known to carry light.
+    /// Black for other kinds.
+    pub fn join(&self, scene: &Scene, prev: &Vertex, next: &Vertex, mode: TransportMode) -> Joined {
         if self.kind != VertexKind::Surface {
-            return Joined { f: Rgb::BLACK, densities: EndDensities::default() };
+            return Joined { f: Rgb::BLACK, wi_local: Vec3::ZERO, wo_local: Vec3::ZERO };
         }
         let (wi, wo) = (self.dir_to(prev), self.dir_to(next));
         let bsdf = &scene.materials[self.si.material as usize].bsdf;
@@ -236,14 +237,21 @@ impl Vertex {
             TransportMode::Radiance => f,
             TransportMode::Importance => f * shading_normal_correction(&self.si, wi, wo),
         };
-        if !densities {
-            return Joined { f, densities: EndDensities::default() };
+        Joined { f, wi_local, wo_local }
+    }
+
+    /// The densities at this end of a connection [`Vertex::join`] made with the same `prev`
+    /// and `next` (see [`EndDensities`]), from its local directions: no BSDF lookup or
+    /// direction again. Zero for vertices that are not on a surface.
+    pub fn end_densities(&self, scene: &Scene, joined: &Joined, prev: &Vertex, next: &Vertex) -> EndDensities {
+        if self.kind != VertexKind::Surface {
+            return EndDensities::default();
         }
-        let densities = EndDensities {
-            next: self.bsdf_density(bsdf, wi_local, wo_local, next),
-            prev: self.bsdf_density(bsdf, wo_local, wi_local, prev),
-        };
-        Joined { f, densities }
+        let bsdf = &scene.materials[self.si.material as usize].bsdf;
+        EndDensities {
+            next: self.bsdf_density(bsdf, joined.wi_local, joined.wo_local, next),
+            prev: self.bsdf_density(bsdf, joined.wo_local, joined.wi_local, prev),
+        }
     }
 
     /// Density per unit area at `to` with which this surface vertex's BSDF, sampled from
@@ -256,11 +264,12 @@ impl Vertex {
 }
 
 /// A surface vertex's part in a connection prev → vertex → next: f·|cos| (adjoint for
-/// importance) and its two MIS densities.
+/// importance), and the local directions towards prev and next for its MIS densities.
 #[derive(Clone, Copy, Debug)]
 pub struct Joined {
     pub f: Rgb,
-    pub densities: EndDensities,
+    wi_local: Vec3,
+    wo_local: Vec3,
 }
 
 /// The densities, per unit area, with which a connection's end vertex samples `next` having
