@@ -32,8 +32,9 @@ pub struct Camera {
     pub to_world: Transform,
     pub width: usize,
     pub height: usize,
-    /// tan of the half field of view along film x and y.
+    /// tan of the half field of view along film x and y, and their reciprocals.
     pub tan_half: Vec2,
+    inv_tan_half: Vec2,
     pub aperture_radius: f32,
     pub focus_distance: f32,
     pub near_clip: f32,
@@ -106,6 +107,7 @@ impl Camera {
             width,
             height,
             tan_half,
+            inv_tan_half: vec2(1.0 / tan_half.x, 1.0 / tan_half.y),
             aperture_radius,
             focus_distance,
             near_clip,
@@ -175,9 +177,10 @@ impl Camera {
         // Point on the plane of focus (or the z=1 plane for a pinhole), seen from the centre.
         let depth = if self.aperture_radius > 0.0 { self.focus_distance } else { 1.0 };
         let p = o + d * ((depth - o.z) / d.z);
-        let (x, y) = (p.x / p.z, p.y / p.z);
-        let sx = (1.0 - x / self.tan_half.x) * 0.5;
-        let sy = (1.0 - y / self.tan_half.y) * 0.5;
+        // Two divisions, not five: this runs for every connection to the camera.
+        let inv_z = 1.0 / p.z;
+        let sx = (1.0 - p.x * inv_z * self.inv_tan_half.x) * 0.5;
+        let sy = (1.0 - p.y * inv_z * self.inv_tan_half.y) * 0.5;
         if !(0.0..1.0).contains(&sx) || !(0.0..1.0).contains(&sy) {
             return None;
         }

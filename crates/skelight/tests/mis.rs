@@ -8,7 +8,9 @@ mod common;
 use common::shared_dir;
 use skelight::integrator::ibpt::{ibpt_strategies, ChainWeight, MisChain, Side};
 use skelight::integrator::lt::camera_end_strategies;
-use skelight::integrator::mis::{all_strategies, weight, Heuristic, Junction, PathWeight, StrategySet, SubPath};
+use skelight::integrator::mis::{
+    all_strategies, running_sums, weight, AllStrategies, Heuristic, Junction, PathWeight, StrategySet, SubPath,
+};
 use skelight::integrator::subpath::{camera_subpath, light_subpath};
 use skelight::integrator::vertex::{Vertex, VertexKind};
 use skelight::material::TransportMode;
@@ -220,9 +222,45 @@ fn random_paths(scene: &Scene, count: usize) -> Vec<(FullPath, usize, f32)> {
     out
 }
 
+/// `bpt`'s weights from running sums of the stored sub-paths equal the weights evaluated
+/// over the whole path, for every join of two stored sub-paths (s, t ≥ 1, the lens and the
+/// light origin included) and both heuristics. Returns how many joins were compared.
+fn check_running_sums(scene: &Scene, name: &str) -> usize {
+    let max_depth = 6;
+    let (mut camera, mut light, mut hits) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut camera_sums, mut light_sums) = (Vec::new(), Vec::new());
+    let mut compared = 0;
+    for i in 0..200u64 {
+        let mut rng = Rng::new(0xB0B, i, 0);
+        let (w, h) = (scene.settings.width as f32, scene.settings.height as f32);
+        camera_subpath(scene, vec2(rng.next_f32() * w, rng.next_f32() * h), &mut rng, max_depth, &mut camera);
+        light_subpath(scene, &mut rng, max_depth, &mut light, &mut hits);
+        for heuristic in [Heuristic::Balance, Heuristic::Power] {
+            running_sums(scene, &camera, heuristic, &mut camera_sums);
+            running_sums(scene, &light, heuristic, &mut light_sums);
+            let fast = AllStrategies { heuristic, light_sums: &light_sums, camera_sums: &camera_sums };
+            for s in 1..=light.len() {
+                for t in 1..=camera.len() {
+                    let (l, c) = (SubPath::new(&light[..s], None), SubPath::new(&camera[..t], None));
+                    let exact = weight(scene, l, c, &Junction::NONE, heuristic, &all_strategies);
+                    let summed = fast.weight(scene, l, c);
+                    assert!(
+                        (summed - exact).abs() <= 1e-5 * exact.max(1e-3),
+                        "{name}: {heuristic:?} weight of (s, t) = ({s}, {t}): running sums {summed}, exact {exact}"
+                    );
+                    compared += 1;
+                }
+            }
+        }
+    }
+    compared
+}
+
 fn check_scene(name: &str) -> usize {
     let path = shared_dir().join("conformance/scenes").join(format!("{name}.xml"));
     let scene = load(&path, &[]).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let compared = check_running_sums(&scene, name);
+    assert!(compared >= 500, "{name}: only {compared} joins compared with running sums");
     let (mut checked, mut differing, mut worst) = (0, 0, 0.0f32);
     for (path, s, recorded) in random_paths(&scene, 400) {
         if !path.carries_light(&scene) {

@@ -5,8 +5,8 @@
 
 use std::cell::RefCell;
 
-use super::mis::{all_strategies, Heuristic, StrategySet};
-use super::strategies::{self, Weighting};
+use super::mis::{running_sums, AllStrategies, Heuristic, PathWeight};
+use super::strategies;
 use super::subpath::camera_subpath;
 use super::vertex::Vertex;
 use super::{Integrator, Iteration};
@@ -25,8 +25,17 @@ pub struct Bpt {
     pub only: Option<(usize, usize)>,
 }
 
+/// A thread's buffers for one pixel sample: its camera sub-path and the MIS running sums
+/// of both sub-paths.
+#[derive(Default)]
+struct Scratch {
+    camera: Vec<Vertex>,
+    camera_sums: Vec<f32>,
+    light_sums: Vec<f32>,
+}
+
 thread_local! {
-    static CAMERA_PATH: RefCell<Vec<Vertex>> = const { RefCell::new(Vec::new()) };
+    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
 }
 
 impl Bpt {
@@ -38,7 +47,8 @@ impl Bpt {
         self.only.is_none_or(|o| o == (s, t))
     }
 
-    /// Every strategy the path length allows, for the pixel's camera sample at `raster`.
+    /// Every strategy the path length allows, for the pixel's camera sub-path, weighted by
+    /// `w`.
     #[allow(clippy::too_many_arguments)]
     pub fn sample_strategies(
         &self,
@@ -48,20 +58,19 @@ impl Bpt {
         camera: &[Vertex],
         rng: &mut Rng,
         tile: &mut FilmTile,
-        strategies: StrategySet,
+        w: &impl PathWeight,
     ) -> Rgb {
         let max_depth = self.max_depth(scene);
         let fits = |s: usize, t: usize| max_depth < 0 || s + t <= max_depth as usize + 1;
-        let w = Weighting { heuristic: self.heuristic, strategies };
         let mut l = Rgb::BLACK;
         for t in 1..=camera.len() {
             if t >= 2 && fits(0, t) && self.records(0, t) {
-                l += strategies::camera_hits_light(scene, camera, t, &w);
+                l += strategies::camera_hits_light(scene, camera, t, w);
             }
             if t >= 2 && fits(1, t) {
                 // Drawn even when not recorded, so the random numbers of one strategy do
                 // not depend on which others are recorded.
-                let c = strategies::connect_to_light(scene, camera, t, rng, &w);
+                let c = strategies::connect_to_light(scene, camera, t, rng, w);
                 if self.records(1, t) {
                     l += c;
                 }
@@ -71,7 +80,7 @@ impl Bpt {
                     if !fits(s, 1) {
                         break;
                     }
-                    if let Some((raster, c)) = strategies::connect_to_camera(scene, light, s, rng, &w) {
+                    if let Some((raster, c)) = strategies::connect_to_camera(scene, light, s, rng, w) {
                         if self.records(s, 1) {
                             tile.splat(raster, c);
                         }
@@ -83,7 +92,7 @@ impl Bpt {
                         break;
                     }
                     if self.records(s, t) {
-                        l += strategies::connect_vertices(scene, light, s, camera, t, &w);
+                        l += strategies::connect_vertices(scene, light, s, camera, t, w);
                     }
                 }
             }
@@ -91,7 +100,7 @@ impl Bpt {
         for hit in lens_hits {
             let s = hit.light_vertices as usize + 1;
             if fits(s, 0) && self.records(s, 0) {
-                tile.splat(hit.raster, strategies::light_hits_lens(scene, light, hit, &w));
+                tile.splat(hit.raster, strategies::light_hits_lens(scene, light, hit, w));
             }
         }
         l
@@ -120,9 +129,13 @@ impl Integrator for Bpt {
             (&[][..], &[][..])
         };
         let pos = vec2(x as f32, y as f32) + rng.next_2d();
-        CAMERA_PATH.with_borrow_mut(|camera| {
+        SCRATCH.with_borrow_mut(|scratch| {
+            let Scratch { camera, camera_sums, light_sums } = scratch;
             camera_subpath(scene, pos, rng, self.max_depth(scene), camera);
-            let l = self.sample_strategies(scene, light, hits, camera, rng, tile, &all_strategies);
+            running_sums(scene, camera, self.heuristic, camera_sums);
+            running_sums(scene, light, self.heuristic, light_sums);
+            let w = AllStrategies { heuristic: self.heuristic, light_sums, camera_sums };
+            let l = self.sample_strategies(scene, light, hits, camera, rng, tile, &w);
             tile.add(pos, l);
         });
     }

@@ -132,12 +132,8 @@ pub fn weight(
     let v = |i: usize| if i < s { light.get(i) } else { camera.get(n - 1 - i) };
     // A light seen directly: only the camera can see lights without area (for every
     // estimator alike, so pinhole and point light images agree), and distant lights.
-    if n == 2 {
-        let x0 = v(0);
-        let area = x0.is_light() && !x0.is_infinite() && x0.hittable(scene);
-        if !area {
-            return if s == 0 { 1.0 } else { 0.0 };
-        }
+    if n == 2 && !v(0).seen_by_other_strategies(scene) {
+        return if s == 0 { 1.0 } else { 0.0 };
     }
     // Each vertex's light-side and camera-side densities and whether the path can be split
     // there, gathered once (on the stack for paths of up to `INLINE` vertices).
@@ -167,21 +163,14 @@ pub fn weight(
         }
     };
     if s > 0 && t > 0 {
-        let (y, z) = (v(s - 1), v(s));
-        let z_prev = (t >= 2).then(|| v(s + 1));
-        let (cam, lig) = (junction.camera_end, junction.light_end);
-        set(s - 1, None, Some(cam.map_or_else(|| z.pdf(scene, z_prev, y), |d| d.next)));
-        if s >= 2 {
-            set(s - 2, None, Some(lig.map_or_else(|| y.pdf(scene, Some(z), v(s - 2)), |d| d.prev)));
+        let r = Rejoined::new(scene, light, camera, junction);
+        set(s - 1, None, Some(r.light_end));
+        if let Some(c) = r.light_before_end {
+            set(s - 2, None, Some(c));
         }
-        let l_z = if s == 1 {
-            y.pdf_light(scene, z)
-        } else {
-            lig.map_or_else(|| y.pdf(scene, Some(v(s - 2)), z), |d| d.next)
-        };
-        set(s, Some(l_z), None);
-        if let Some(zp) = z_prev {
-            set(s + 1, Some(cam.map_or_else(|| z.pdf(scene, Some(y), zp), |d| d.prev)), None);
+        set(s, Some(r.camera_end), None);
+        if let Some(l) = r.camera_before_end {
+            set(s + 1, Some(l), None);
         }
     } else if s == 0 {
         let x0 = v(0);
@@ -228,6 +217,104 @@ pub fn weight(
         }
     }
     1.0 / sum
+}
+
+/// The densities that joining a light sub-path (ending y) and a camera sub-path (ending z)
+/// changes: the other side's densities of the two ends and of their predecessors (`None`
+/// where there is none), each from `junction` where it has it.
+struct Rejoined {
+    /// Camera-side density of y (z sampling y) and of y's predecessor (y sampling it, come
+    /// from z).
+    light_end: f32,
+    light_before_end: Option<f32>,
+    /// Light-side density of z (y sampling z) and of z's predecessor.
+    camera_end: f32,
+    camera_before_end: Option<f32>,
+}
+
+impl Rejoined {
+    fn new(scene: &Scene, light: SubPath, camera: SubPath, junction: &Junction) -> Rejoined {
+        let (s, t) = (light.len(), camera.len());
+        let (y, z) = (light.get(s - 1), camera.get(t - 1));
+        let y_prev = (s >= 2).then(|| light.get(s - 2));
+        let z_prev = (t >= 2).then(|| camera.get(t - 2));
+        let (cam, lig) = (junction.camera_end, junction.light_end);
+        let camera_end = match y_prev {
+            None => y.pdf_light(scene, z),
+            Some(yp) => lig.map_or_else(|| y.pdf(scene, Some(yp), z), |d| d.next),
+        };
+        Rejoined {
+            light_end: cam.map_or_else(|| z.pdf(scene, z_prev, y), |d| d.next),
+            light_before_end: y_prev.map(|yp| lig.map_or_else(|| y.pdf(scene, Some(z), yp), |d| d.prev)),
+            camera_end,
+            camera_before_end: z_prev.map(|zp| cam.map_or_else(|| z.pdf(scene, Some(y), zp), |d| d.prev)),
+        }
+    }
+}
+
+/// Running sums of a stored sub-path's terms in the weights of the paths it is joined into
+/// (SmallVCM's recursive quantities, per vertex): entry k is Σ_{i ≤ k} [strategy i can
+/// make the path] Π_{j = i..=k} h(rev_j / fwd_j), counting vertices from the sub-path's
+/// origin, fwd its own density and rev the other side's. A join at vertex m − 1 changes
+/// only the densities of vertices m − 1 and m − 2, so entry m − 3 stands for all the rest
+/// of that side ([`AllStrategies`]). For every strategy only: a subset's terms would depend
+/// on the whole path's length.
+pub fn running_sums(scene: &Scene, path: &[Vertex], heuristic: Heuristic, out: &mut Vec<f32>) {
+    out.clear();
+    let mut sum = 0.0f32;
+    for (k, x) in path.iter().enumerate() {
+        let feasible = if k == 0 { x.hittable(scene) } else { path[k - 1].connectible() && x.connectible() };
+        sum = heuristic.apply(remap_delta(x.pdf_rev) / remap_delta(x.pdf_fwd)) * (sum + f32::from(u8::from(feasible)));
+        out.push(sum);
+    }
+}
+
+/// Exact MIS over all (s, t) strategies (`bpt`) from the [`running_sums`] of the two stored
+/// sub-paths being joined: a weight costs the densities at the join, not a pass over the
+/// path. Joins with no vertex on one side (s = 0, t = 0) are weighed by [`weight`].
+#[derive(Clone, Copy)]
+pub struct AllStrategies<'a> {
+    pub heuristic: Heuristic,
+    pub light_sums: &'a [f32],
+    pub camera_sums: &'a [f32],
+}
+
+impl PathWeight for AllStrategies<'_> {
+    fn weight_joined(&self, scene: &Scene, light: SubPath, camera: SubPath, junction: &Junction) -> f32 {
+        let (s, t) = (light.len(), camera.len());
+        if s == 0 || t == 0 {
+            return weight(scene, light, camera, junction, self.heuristic, &all_strategies);
+        }
+        if s + t == 2 && !light.get(0).seen_by_other_strategies(scene) {
+            return 0.0;
+        }
+        let r = Rejoined::new(scene, light, camera, junction);
+        let light_side = self.side(scene, light, r.light_end, r.light_before_end, self.light_sums);
+        let camera_side = self.side(scene, camera, r.camera_end, r.camera_before_end, self.camera_sums);
+        1.0 / (1.0 + light_side + camera_side)
+    }
+}
+
+impl AllStrategies<'_> {
+    /// The terms of the strategies that take more vertices from the other side than this
+    /// join does: `side`'s vertex m − 1 (joined, so splittable) and m − 2 with their new
+    /// other-side densities, then the running sum of the rest.
+    fn side(&self, scene: &Scene, side: SubPath, rev_end: f32, rev_before_end: Option<f32>, sums: &[f32]) -> f32 {
+        let m = side.len();
+        let h = |k: usize, rev: f32| self.heuristic.apply(remap_delta(rev) / remap_delta(side.get(k).pdf_fwd));
+        let feasible = |k: usize, splittable: bool| {
+            let ok = if k == 0 { side.get(0).hittable(scene) } else { side.get(k - 1).connectible() && splittable };
+            f32::from(u8::from(ok))
+        };
+        let before = match rev_before_end {
+            Some(rev) => {
+                let rest = if m >= 3 { sums[m - 3] } else { 0.0 };
+                h(m - 2, rev) * (rest + feasible(m - 2, side.get(m - 2).connectible()))
+            }
+            None => 0.0,
+        };
+        h(m - 1, rev_end) * (before + feasible(m - 1, true))
+    }
 }
 
 /// A vertex of the path being weighed: its densities under light-side (`l`) and

@@ -147,6 +147,13 @@ impl Vertex {
         }
     }
 
+    /// Whether a light vertex seen directly by the camera (a two-vertex path) is weighed
+    /// against the strategies that start on the light: only for emitters with area, so that
+    /// every estimator sees point and distant lights alike (see `mis`).
+    pub fn seen_by_other_strategies(&self, scene: &Scene) -> bool {
+        self.is_light() && !self.is_infinite() && self.hittable(scene)
+    }
+
     /// Unit direction from this vertex towards `other`.
     pub fn dir_to(&self, other: &Vertex) -> Vec3 {
         if other.is_infinite() {
@@ -167,8 +174,12 @@ impl Vertex {
             return 0.0;
         }
         let n = next.n();
-        let cos = if n.length_squared() > 0.0 { n.dot(d).abs() / dist2.sqrt() } else { 1.0 };
-        pdf * cos / dist2
+        // |cos| / dist² with one division: the dot product of the unnormalised d over dist³.
+        if n.length_squared() > 0.0 {
+            pdf * n.dot(d).abs() / (dist2 * dist2.sqrt())
+        } else {
+            pdf / dist2
+        }
     }
 
     /// Density (per unit area at `next`) with which this vertex, reached from `prev`,
