@@ -17,6 +17,7 @@ pub struct RayPrecomp {
 }
 
 impl RayPrecomp {
+    #[inline(always)]
     pub fn new(ray: &Ray) -> RayPrecomp {
         let kz = ray.d.abs().max_axis();
         let mut kx = (kz + 1) % 3;

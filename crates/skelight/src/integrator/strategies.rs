@@ -165,12 +165,15 @@ pub fn connect_vertices(
     if !y.can_connect(scene) || !z.can_connect(scene) || z.kind != VertexKind::Surface {
         return Rgb::BLACK;
     }
-    let d2 = (y.p() - z.p()).length_squared();
-    if !(d2 > 0.0) {
+    let d = z.p() - y.p();
+    let d2 = d.length_squared();
+    if !(d2 > 0.0) || y.kind != VertexKind::Surface {
         return Rgb::BLACK;
     }
-    let jy = y.join(scene, &light[s - 2], z, TransportMode::Importance);
-    let jz = z.join(scene, &camera[t - 2], y, TransportMode::Radiance);
+    // Both ends are surfaces: one direction, each end's view of it.
+    let towards_z = d / d2.sqrt();
+    let jy = y.join_towards(scene, &light[s - 2], towards_z, TransportMode::Importance);
+    let jz = z.join_towards(scene, &camera[t - 2], -towards_z, TransportMode::Radiance);
     let c = y.beta * jy.f * jz.f * z.beta / d2;
     if c.is_black() || !visible(scene, z, y) {
         return Rgb::BLACK;

@@ -239,7 +239,13 @@ impl Vertex {
         if self.kind != VertexKind::Surface {
             return Joined { f: Rgb::BLACK, wi_local: Vec3::ZERO, wo_local: Vec3::ZERO };
         }
-        let (wi, wo) = (self.dir_to(prev), self.dir_to(next));
+        self.join_towards(scene, prev, self.dir_to(next), mode)
+    }
+
+    /// [`Vertex::join`] of a surface vertex, given the unit direction `wo` towards `next`
+    /// (which a connection's two ends share).
+    pub fn join_towards(&self, scene: &Scene, prev: &Vertex, wo: Vec3, mode: TransportMode) -> Joined {
+        let wi = self.dir_to(prev);
         let bsdf = &scene.materials[self.si.material as usize].bsdf;
         let frame = &self.si.frame;
         let (wi_local, wo_local) = (frame.to_local(wi), frame.to_local(wo));

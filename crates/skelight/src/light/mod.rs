@@ -153,6 +153,9 @@ pub struct AreaEmitter {
     pub normals: Option<Vec<[Vec3; 3]>>,
     pub area: f32,
     pub distribution: Distribution1D,
+    /// Unit geometric normal of each triangle (winding order), worked out once rather than
+    /// per light sample.
+    geometric_normals: Vec<Vec3>,
 }
 
 /// A sampled ray leaving a light (for light tracing and bidirectional methods).
@@ -184,12 +187,37 @@ struct AreaPoint {
 }
 
 impl AreaEmitter {
+    /// The emitter made of `triangles` (with per-vertex shading normals if given), sampled
+    /// by area; `None` if they have no area.
+    pub fn new(mesh: u32, radiance: Rgb, triangles: Vec<[Vec3; 3]>, normals: Option<Vec<[Vec3; 3]>>) -> Option<Self> {
+        let cross = |t: &[Vec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]);
+        let areas: Vec<f32> = triangles.iter().map(|t| 0.5 * cross(t).length()).collect();
+        let area: f32 = areas.iter().sum();
+        if !(area > 0.0) {
+            return None;
+        }
+        // Degenerate triangles are never sampled (zero area); their normal does not matter.
+        let geometric_normals = triangles
+            .iter()
+            .map(|t| {
+                let c = cross(t);
+                if c.length_squared() > 0.0 {
+                    c.normalize()
+                } else {
+                    Vec3::ZERO
+                }
+            })
+            .collect();
+        let distribution = Distribution1D::new(&areas);
+        Some(AreaEmitter { mesh, radiance, triangles, normals, area, distribution, geometric_normals })
+    }
+
     fn sample_point(&self, u: Vec2) -> AreaPoint {
         let (tri, _, rem) = self.distribution.sample_discrete(u.x);
         let b = uniform_triangle(vec2(rem, u.y));
         let [v0, v1, v2] = self.triangles[tri];
         let p = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
-        let ng = (v1 - v0).cross(v2 - v0).normalize();
+        let ng = self.geometric_normals[tri];
         let ns = match &self.normals {
             Some(n) => (n[tri][0] * (1.0 - b.x - b.y) + n[tri][1] * b.x + n[tri][2] * b.y).normalize(),
             None => ng,
@@ -558,15 +586,7 @@ mod tests {
             [vec3(0.0, 1.0, 0.0), vec3(1.0, 1.0, 0.0), vec3(0.0, 1.0, 1.0)],
             [vec3(0.0, 1.0, 0.0), vec3(-2.0, 1.0, 0.0), vec3(0.0, 1.0, -1.0)],
         ];
-        let areas: Vec<f32> = tris.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).collect();
-        let light = Light::Area(AreaEmitter {
-            mesh: 0,
-            radiance: Rgb::WHITE,
-            triangles: tris,
-            normals: None,
-            area: areas.iter().sum(),
-            distribution: Distribution1D::new(&areas),
-        });
+        let light = Light::Area(AreaEmitter::new(0, Rgb::WHITE, tris, None).unwrap());
         let mut rng = Rng::new(1, 0, 0);
         for _ in 0..100 {
             let s = light.sample_li(Vec3::ZERO, rng.next_2d()).unwrap();

@@ -3,7 +3,7 @@
 use super::{upper_cosine_pdf, weighted_sample, BsdfCtx, BsdfModel, BsdfSample};
 use crate::color::Rgb;
 use crate::math::{Vec2, Vec3, INV_PI};
-use crate::sampling::cosine_hemisphere;
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::texture::Texture;
 
 #[derive(Clone, Debug)]
@@ -30,7 +30,16 @@ impl BsdfModel for Diffuse {
         upper_cosine_pdf(wi, wo)
     }
     fn sample(&self, ctx: &BsdfCtx, wi: Vec3, _: f32, u: Vec2) -> Option<BsdfSample> {
-        sample_cosine(self, ctx, wi, u)
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let wo = cosine_hemisphere(u);
+        let pdf = cosine_hemisphere_pdf(wo.z);
+        if !(pdf > 0.0) {
+            return None;
+        }
+        // eval / pdf without the division: the cosine and 1/π cancel.
+        Some(BsdfSample { wo, weight: self.reflectance.eval(ctx.uv), pdf, delta: false })
     }
 }
 

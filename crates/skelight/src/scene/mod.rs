@@ -263,22 +263,11 @@ impl Scene {
                 continue;
             }
             let triangles: Vec<[Vec3; 3]> = (0..mesh.indices.len()).map(|t| mesh.triangle(t)).collect();
-            let areas: Vec<f32> = triangles.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).collect();
-            let area: f32 = areas.iter().sum();
-            if !(area > 0.0) {
-                continue;
-            }
             let normals = (!mesh.normals.is_empty())
                 .then(|| mesh.indices.iter().map(|idx| idx.map(|k| mesh.normals[k as usize])).collect());
+            let Some(emitter) = AreaEmitter::new(mi as u32, radiance, triangles, normals) else { continue };
             mesh_light[mi] = Some(lights.len() as u32);
-            lights.push(Light::Area(AreaEmitter {
-                mesh: mi as u32,
-                radiance,
-                triangles,
-                normals,
-                area,
-                distribution: Distribution1D::new(&areas),
-            }));
+            lights.push(Light::Area(emitter));
         }
         lights.append(&mut other_lights);
         let infinite_lights = lights
