@@ -167,20 +167,27 @@ impl Camera {
         Ray::new(self.local_to_world.point(o), self.local_to_world.vector(d).normalize())
     }
 
-    /// Film position (pixels) that a world direction leaving lens point `lens_world` maps to.
+    /// Film position (pixels) that a world direction leaving lens point `lens_world` maps to
+    /// (for a pinhole, which every ray passes through, the direction alone).
     pub fn raster_of(&self, lens_world: Vec3, dir_world: Vec3) -> Option<Vec2> {
-        let o = self.world_to_local.point(lens_world);
         let d = self.world_to_local.vector(dir_world);
         if d.z <= 0.0 {
             return None;
         }
-        // Point on the plane of focus (or the z=1 plane for a pinhole), seen from the centre.
-        let depth = if self.aperture_radius > 0.0 { self.focus_distance } else { 1.0 };
-        let p = o + d * ((depth - o.z) / d.z);
-        // Two divisions, not five: this runs for every connection to the camera.
-        let inv_z = 1.0 / p.z;
-        let sx = (1.0 - p.x * inv_z * self.inv_tan_half.x) * 0.5;
-        let sy = (1.0 - p.y * inv_z * self.inv_tan_half.y) * 0.5;
+        // Where the ray crosses the plane of focus, seen from the lens centre, per unit depth.
+        let (x, y) = if self.aperture_radius > 0.0 {
+            let o = self.world_to_local.point(lens_world);
+            let p = o + d * ((self.focus_distance - o.z) / d.z);
+            let inv_z = 1.0 / p.z;
+            (p.x * inv_z, p.y * inv_z)
+        } else {
+            // Every ray of a pinhole passes through it: the direction alone decides (one
+            // division, as this runs for every connection to the camera).
+            let inv_z = 1.0 / d.z;
+            (d.x * inv_z, d.y * inv_z)
+        };
+        let sx = (1.0 - x * self.inv_tan_half.x) * 0.5;
+        let sy = (1.0 - y * self.inv_tan_half.y) * 0.5;
         if !(0.0..1.0).contains(&sx) || !(0.0..1.0).contains(&sy) {
             return None;
         }
