@@ -246,13 +246,16 @@ impl Camera {
         };
         let lens_point = self.local_to_world.point(lens_local);
         let d = lens_point - p;
+        // The film position needs the direction only up to its length: found before the
+        // square root and division that normalise it, not after (and points off the film
+        // are dropped before them).
+        let raster = self.raster_of(lens_point, -d)?;
         let dist2 = d.length_squared();
         if !(dist2 > 0.0) {
             return None;
         }
         let dist = dist2.sqrt();
         let wi = d / dist;
-        let raster = self.raster_of(lens_point, -wi)?;
         let cos_lens = (-wi).dot(self.forward);
         if cos_lens <= 0.0 {
             return None;
