@@ -262,11 +262,22 @@ impl Rejoined {
 pub fn running_sums(scene: &Scene, path: &[Vertex], heuristic: Heuristic, out: &mut Vec<f32>) {
     out.clear();
     let mut sum = 0.0f32;
+    let side = SubPath::new(path, None);
     for (k, x) in path.iter().enumerate() {
-        let feasible = if k == 0 { x.hittable(scene) } else { path[k - 1].connectible() && x.connectible() };
-        sum = heuristic.apply(remap_delta(x.pdf_rev) / remap_delta(x.pdf_fwd)) * (sum + f32::from(u8::from(feasible)));
+        let feasible = ends_at(scene, side, k, x.connectible());
+        sum = heuristic.apply(remap_delta(x.pdf_rev) / remap_delta(x.pdf_fwd)) * (sum + feasible);
         out.push(sum);
     }
+}
+
+/// 1 if the strategy that takes `side`'s vertices up to `k` from the other side can make
+/// the path (the origin is hittable for k = 0; otherwise vertices k − 1 and k, this one
+/// `splittable`, both allow a connection), else 0: the rule of [`weight`]'s `valid`, in one
+/// sub-path's own numbering.
+#[inline]
+fn ends_at(scene: &Scene, side: SubPath, k: usize, splittable: bool) -> f32 {
+    let ok = if k == 0 { side.get(0).hittable(scene) } else { side.get(k - 1).connectible() && splittable };
+    f32::from(u8::from(ok))
 }
 
 /// Exact MIS over all (s, t) strategies (`bpt`) from the [`running_sums`] of the two stored
@@ -302,18 +313,14 @@ impl AllStrategies<'_> {
     fn side(&self, scene: &Scene, side: SubPath, rev_end: f32, rev_before_end: Option<f32>, sums: &[f32]) -> f32 {
         let m = side.len();
         let h = |k: usize, rev: f32| self.heuristic.apply(remap_delta(rev) / remap_delta(side.get(k).pdf_fwd));
-        let feasible = |k: usize, splittable: bool| {
-            let ok = if k == 0 { side.get(0).hittable(scene) } else { side.get(k - 1).connectible() && splittable };
-            f32::from(u8::from(ok))
-        };
         let before = match rev_before_end {
             Some(rev) => {
                 let rest = if m >= 3 { sums[m - 3] } else { 0.0 };
-                h(m - 2, rev) * (rest + feasible(m - 2, side.get(m - 2).connectible()))
+                h(m - 2, rev) * (rest + ends_at(scene, side, m - 2, side.get(m - 2).connectible()))
             }
             None => 0.0,
         };
-        h(m - 1, rev_end) * (before + feasible(m - 1, true))
+        h(m - 1, rev_end) * (before + ends_at(scene, side, m - 1, true))
     }
 }
 
