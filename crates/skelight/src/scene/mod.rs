@@ -47,6 +47,31 @@ impl Mesh {
         let [a, b, c] = self.indices[i].map(|k| self.uvs[k as usize]);
         a * (1.0 - b1 - b2) + b * b1 + c * b2
     }
+    /// Position derivatives (dp/du, dp/dv) of triangle `i` from its uv parameterisation (the
+    /// edges when it has none or it is degenerate), for tangent frames and bump mapping.
+    pub fn position_derivatives(&self, i: usize) -> (Vec3, Vec3) {
+        let [p0, p1, p2] = self.triangle(i);
+        let (e1, e2) = (p1 - p0, p2 - p0);
+        if self.uvs.is_empty() {
+            return (e1, e2);
+        }
+        let [t0, t1, t2] = self.indices[i].map(|k| self.uvs[k as usize]);
+        let (du1, dv1, du2, dv2) = (t1.x - t0.x, t1.y - t0.y, t2.x - t0.x, t2.y - t0.y);
+        let det = du1 * dv2 - dv1 * du2;
+        if det.abs() < 1e-12 {
+            (e1, e2)
+        } else {
+            let inv = 1.0 / det;
+            ((e1 * dv2 - e2 * dv1) * inv, (e2 * du1 - e1 * du2) * inv)
+        }
+    }
+    /// Triangle `i`'s frame without shading normals: unit geometric normal, tangent along
+    /// dp/du. Constant over the triangle, so the scene keeps one per triangle.
+    pub fn flat_frame(&self, i: usize) -> Frame {
+        let [p0, p1, p2] = self.triangle(i);
+        let ng = (p1 - p0).cross(p2 - p0).normalize();
+        Frame::from_normal_tangent(ng, self.position_derivatives(i).0)
+    }
 }
 
 /// Settings a scene file carries besides its contents.
@@ -156,6 +181,9 @@ pub struct Scene {
     accel: Box<dyn Accelerator>,
     /// Global triangle index → (mesh, triangle within mesh).
     tri_owner: Vec<(u32, u32)>,
+    /// Global triangle index → [`Mesh::flat_frame`]: a hit then needs no square root for
+    /// its geometric normal or, on meshes without shading normals, its frame.
+    flat_frames: Vec<Frame>,
     /// Meshes traced as exact spheres, tested one by one after the accelerator (scenes
     /// have few; their triangles are not in the accelerator).
     spheres: Vec<(u32, Sphere)>,
@@ -203,6 +231,7 @@ impl Scene {
         }
         let mut tris = Vec::new();
         let mut tri_owner = Vec::new();
+        let mut flat_frames = Vec::new();
         let mut spheres = Vec::new();
         for mesh in meshes.iter_mut() {
             // Emitters are sampled on their triangles, and masks are tested on them: those
@@ -240,6 +269,7 @@ impl Scene {
             for ti in 0..mesh.indices.len() {
                 tris.push(BuildTriangle { v: mesh.triangle(ti), masked: mesh.alpha.is_some() });
                 tri_owner.push((mi as u32, ti as u32));
+                flat_frames.push(mesh.flat_frame(ti));
             }
         }
         if tris.len() >= (1usize << 31) {
@@ -289,6 +319,7 @@ impl Scene {
             warnings,
             accel: Box::new(bvh),
             tri_owner,
+            flat_frames,
             spheres,
             bounds,
         })
@@ -381,40 +412,28 @@ impl Scene {
         let b0 = 1.0 - b1 - b2;
         let [p0, p1, p2] = mesh.triangle(ti);
         let p = p0 * b0 + p1 * b1 + p2 * b2;
-        let e1 = p1 - p0;
-        let e2 = p2 - p0;
-        let ng = e1.cross(e2).normalize();
-        let ns = if mesh.normals.is_empty() {
-            ng
-        } else {
-            let [n0, n1, n2] = mesh.indices[ti].map(|k| mesh.normals[k as usize]);
-            let n = n0 * b0 + n1 * b1 + n2 * b2;
-            if n.length_squared() > 0.0 {
-                n.normalize()
-            } else {
-                ng
-            }
-        };
+        let flat = self.flat_frames[hit.prim as usize];
+        let ng = flat.n;
         let uv = mesh.uv_at(ti, b1, b2);
-        // dp/du from the uv parameterisation, for anisotropic frames and bump mapping.
-        let (dpdu, dpdv) = if mesh.uvs.is_empty() {
-            (e1, e2)
+        let material = mesh.material;
+        let perturbation = &self.materials[material as usize].perturbation;
+        let frame = if mesh.normals.is_empty() && perturbation.is_none() {
+            flat
         } else {
-            let [t0, t1, t2] = mesh.indices[ti].map(|k| mesh.uvs[k as usize]);
-            let (du1, dv1, du2, dv2) = (t1.x - t0.x, t1.y - t0.y, t2.x - t0.x, t2.y - t0.y);
-            let det = du1 * dv2 - dv1 * du2;
-            if det.abs() < 1e-12 {
-                (e1, e2)
+            let (dpdu, dpdv) = mesh.position_derivatives(ti);
+            let frame = if mesh.normals.is_empty() {
+                flat
             } else {
-                let inv = 1.0 / det;
-                ((e1 * dv2 - e2 * dv1) * inv, (e2 * du1 - e1 * du2) * inv)
+                let [n0, n1, n2] = mesh.indices[ti].map(|k| mesh.normals[k as usize]);
+                let n = n0 * b0 + n1 * b1 + n2 * b2;
+                let ns = if n.length_squared() > 0.0 { n.normalize() } else { ng };
+                Frame::from_normal_tangent(ns, dpdu)
+            };
+            match perturbation {
+                Some(perturb) => perturb.apply(&frame, dpdu, dpdv, uv),
+                None => frame,
             }
         };
-        let mut frame = Frame::from_normal_tangent(ns, dpdu);
-        let material = mesh.material;
-        if let Some(perturb) = &self.materials[material as usize].perturbation {
-            frame = perturb.apply(&frame, dpdu, dpdv, uv);
-        }
         let wi = -ray.d.normalize();
         SurfaceInteraction { p, t: hit.t, ng, frame, uv, wi, mesh: mi, prim: ti as u32, material }
     }
