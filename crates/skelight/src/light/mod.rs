@@ -295,14 +295,16 @@ impl Light {
                 if !(dist2 > 0.0) {
                     return None;
                 }
-                let dist = dist2.sqrt();
-                let wi = d / dist;
-                let cos_l = ng.dot(wi).abs();
-                if cos_l <= 0.0 {
+                // From d rather than the unit direction, so that the density's division
+                // runs beside the normalisation's instead of after it.
+                let projected = ng.dot(d).abs() * a.area;
+                if projected <= 0.0 {
                     return None;
                 }
-                let radiance = if ns.dot(wi) < 0.0 { a.radiance } else { Rgb::BLACK };
-                let pdf = dist2 / (cos_l * a.area);
+                let dist = dist2.sqrt();
+                let wi = d / dist;
+                let radiance = if ns.dot(d) < 0.0 { a.radiance } else { Rgb::BLACK };
+                let pdf = dist2 * dist / projected;
                 Some(LightSample { wi, dist, radiance, pdf, delta: false, p: q, n: ng })
             }
             Light::Point { position, intensity } => {

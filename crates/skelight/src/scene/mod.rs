@@ -65,13 +65,29 @@ impl Mesh {
             ((e1 * dv2 - e2 * dv1) * inv, (e2 * du1 - e1 * du2) * inv)
         }
     }
-    /// Triangle `i`'s frame without shading normals: unit geometric normal, tangent along
-    /// dp/du. Constant over the triangle, so the scene keeps one per triangle.
-    pub fn flat_frame(&self, i: usize) -> Frame {
+    /// What triangle `i`'s hits share: its unit geometric normal and, where the shading
+    /// normal is the same at every point (no shading normals, or three equal ones, as on
+    /// flat-shaded shapes), its shading frame with the tangent along dp/du.
+    pub fn triangle_frames(&self, i: usize) -> TriangleFrames {
         let [p0, p1, p2] = self.triangle(i);
         let ng = (p1 - p0).cross(p2 - p0).normalize();
-        Frame::from_normal_tangent(ng, self.position_derivatives(i).0)
+        let ns = match self.indices[i].map(|k| self.normals.get(k as usize)) {
+            [None, ..] => Some(ng),
+            [Some(a), Some(b), Some(c)] if a == b && b == c && a.length_squared() > 0.0 => Some(a.normalize()),
+            _ => None,
+        };
+        let shading = ns.map(|n| Frame::from_normal_tangent(n, self.position_derivatives(i).0));
+        TriangleFrames { ng, shading }
     }
+}
+
+/// See [`Mesh::triangle_frames`]. Kept per triangle by the scene: most hits then need no
+/// square root for their normals and frame.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleFrames {
+    pub ng: Vec3,
+    /// The shading frame, when it does not vary over the triangle.
+    pub shading: Option<Frame>,
 }
 
 /// Settings a scene file carries besides its contents.
@@ -181,9 +197,8 @@ pub struct Scene {
     accel: Box<dyn Accelerator>,
     /// Global triangle index → (mesh, triangle within mesh).
     tri_owner: Vec<(u32, u32)>,
-    /// Global triangle index → [`Mesh::flat_frame`]: a hit then needs no square root for
-    /// its geometric normal or, on meshes without shading normals, its frame.
-    flat_frames: Vec<Frame>,
+    /// Global triangle index → [`Mesh::triangle_frames`].
+    frames: Vec<TriangleFrames>,
     /// Meshes traced as exact spheres, tested one by one after the accelerator (scenes
     /// have few; their triangles are not in the accelerator).
     spheres: Vec<(u32, Sphere)>,
@@ -231,7 +246,7 @@ impl Scene {
         }
         let mut tris = Vec::new();
         let mut tri_owner = Vec::new();
-        let mut flat_frames = Vec::new();
+        let mut frames = Vec::new();
         let mut spheres = Vec::new();
         for mesh in meshes.iter_mut() {
             // Emitters are sampled on their triangles, and masks are tested on them: those
@@ -269,7 +284,7 @@ impl Scene {
             for ti in 0..mesh.indices.len() {
                 tris.push(BuildTriangle { v: mesh.triangle(ti), masked: mesh.alpha.is_some() });
                 tri_owner.push((mi as u32, ti as u32));
-                flat_frames.push(mesh.flat_frame(ti));
+                frames.push(mesh.triangle_frames(ti));
             }
         }
         if tris.len() >= (1usize << 31) {
@@ -319,7 +334,7 @@ impl Scene {
             warnings,
             accel: Box::new(bvh),
             tri_owner,
-            flat_frames,
+            frames,
             spheres,
             bounds,
         })
@@ -412,26 +427,24 @@ impl Scene {
         let b0 = 1.0 - b1 - b2;
         let [p0, p1, p2] = mesh.triangle(ti);
         let p = p0 * b0 + p1 * b1 + p2 * b2;
-        let flat = self.flat_frames[hit.prim as usize];
-        let ng = flat.n;
+        let TriangleFrames { ng, shading } = self.frames[hit.prim as usize];
         let uv = mesh.uv_at(ti, b1, b2);
         let material = mesh.material;
         let perturbation = &self.materials[material as usize].perturbation;
-        let frame = if mesh.normals.is_empty() && perturbation.is_none() {
-            flat
-        } else {
-            let (dpdu, dpdv) = mesh.position_derivatives(ti);
-            let frame = if mesh.normals.is_empty() {
-                flat
-            } else {
-                let [n0, n1, n2] = mesh.indices[ti].map(|k| mesh.normals[k as usize]);
-                let n = n0 * b0 + n1 * b1 + n2 * b2;
-                let ns = if n.length_squared() > 0.0 { n.normalize() } else { ng };
-                Frame::from_normal_tangent(ns, dpdu)
-            };
-            match perturbation {
-                Some(perturb) => perturb.apply(&frame, dpdu, dpdv, uv),
-                None => frame,
+        let frame = match (shading, perturbation) {
+            (Some(frame), None) => frame,
+            _ => {
+                let (dpdu, dpdv) = mesh.position_derivatives(ti);
+                let frame = shading.unwrap_or_else(|| {
+                    let [n0, n1, n2] = mesh.indices[ti].map(|k| mesh.normals[k as usize]);
+                    let n = n0 * b0 + n1 * b1 + n2 * b2;
+                    let ns = if n.length_squared() > 0.0 { n.normalize() } else { ng };
+                    Frame::from_normal_tangent(ns, dpdu)
+                });
+                match perturbation {
+                    Some(perturb) => perturb.apply(&frame, dpdu, dpdv, uv),
+                    None => frame,
+                }
             }
         };
         let wi = -ray.d.normalize();
