@@ -8,7 +8,7 @@ use crate::film::FilmTile;
 use crate::geometry::Ray;
 use crate::material::{BsdfCtx, BsdfModel, TransportMode};
 use crate::math::{vec2, Vec3};
-use crate::sampling::{power_heuristic, Rng};
+use crate::sampling::{power_heuristic, power_heuristic_over_pdf, Rng};
 use crate::scene::Scene;
 
 #[derive(Clone, Debug, Default)]
@@ -77,9 +77,13 @@ impl PathTracer {
                         if !f.is_black() {
                             let shadow = if ls.dist.is_finite() { si.spawn_ray_to(ls.p) } else { si.spawn_ray(ls.wi) };
                             if !scene.occluded(&shadow) {
-                                let w =
-                                    if ls.delta { 1.0 } else { power_heuristic(pmf * ls.pdf, bsdf.pdf(&ctx, wi, wo)) };
-                                l += beta * f * ls.radiance * (w / (pmf * ls.pdf));
+                                let pdf = pmf * ls.pdf;
+                                let scale = if ls.delta {
+                                    1.0 / pdf
+                                } else {
+                                    power_heuristic_over_pdf(pdf, bsdf.pdf(&ctx, wi, wo))
+                                };
+                                l += beta * f * ls.radiance * scale;
                             }
                         }
                     }

@@ -474,11 +474,12 @@ impl Light {
             Light::Area(a) => {
                 let d = q - p;
                 let dist2 = d.length_squared();
-                let cos_l = ng.dot(d).abs() / dist2.sqrt();
-                if cos_l <= 0.0 {
+                // dist² / (cos · area) with cos = |ng · d| / dist: one division.
+                let projected = ng.dot(d).abs() * a.area;
+                if projected <= 0.0 {
                     0.0
                 } else {
-                    dist2 / (cos_l * a.area)
+                    dist2 * dist2.sqrt() / projected
                 }
             }
             _ => 0.0,
