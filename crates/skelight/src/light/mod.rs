@@ -182,7 +182,7 @@ struct AreaPoint {
     p: Vec3,
     /// Geometric normal.
     ng: Vec3,
-    /// Shading normal (decides the emitting side).
+    /// Shading normal, not normalised: it only decides the emitting side.
     ns: Vec3,
 }
 
@@ -219,7 +219,7 @@ impl AreaEmitter {
         let p = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
         let ng = self.geometric_normals[tri];
         let ns = match &self.normals {
-            Some(n) => (n[tri][0] * (1.0 - b.x - b.y) + n[tri][1] * b.x + n[tri][2] * b.y).normalize(),
+            Some(n) => n[tri][0] * (1.0 - b.x - b.y) + n[tri][1] * b.x + n[tri][2] * b.y,
             None => ng,
         };
         AreaPoint { p, ng, ns }
