@@ -155,13 +155,14 @@ impl Camera {
     /// Primary ray through film position `raster` (pixels), lens sample `u_lens`.
     pub fn generate_ray(&self, raster: Vec2, u_lens: Vec2) -> Ray {
         let d = self.local_direction(raster);
+        // Directions stay unnormalised until the last step: the near-clip offset does not
+        // depend on their length, and one normalisation in world space is enough.
         let (o, d) = if self.aperture_radius > 0.0 {
             let l = concentric_disk(u_lens) * self.aperture_radius;
             let lens = vec3(l.x, l.y, 0.0);
-            let focus = d * self.focus_distance;
-            (lens, (focus - lens).normalize())
+            (lens, d * self.focus_distance - lens)
         } else {
-            (Vec3::ZERO, d.normalize())
+            (Vec3::ZERO, d)
         };
         let o = o + d * (self.near_clip / d.z);
         Ray::new(self.local_to_world.point(o), self.local_to_world.vector(d).normalize())

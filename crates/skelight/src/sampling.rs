@@ -52,8 +52,10 @@ impl Rng {
 /// Cosine-weighted hemisphere around +z (Malley's method on the concentric disk).
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
-    let d = concentric_disk(u);
-    let z = (1.0 - d.x * d.x - d.y * d.y).max(0.0).sqrt();
+    let (d, r2) = concentric_disk_and_radius2(u);
+    // From the map's radius rather than from d: the square root then runs beside the
+    // division and polynomials of the angle instead of after them.
+    let z = (1.0 - r2).max(0.0).sqrt();
     vec3(d.x, d.y, z)
 }
 
@@ -65,19 +67,27 @@ pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
 /// Uniform point on the unit disk (Shirley–Chiu concentric mapping).
 #[inline]
 pub fn concentric_disk(u: Vec2) -> Vec2 {
+    concentric_disk_and_radius2(u).0
+}
+
+/// [`concentric_disk`] and the point's squared distance from the centre, known before the
+/// point (it is max(a², b²) of the square's coordinates).
+#[inline]
+fn concentric_disk_and_radius2(u: Vec2) -> (Vec2, f32) {
     let a = 2.0 * u.x - 1.0;
     let b = 2.0 * u.y - 1.0;
     if a == 0.0 && b == 0.0 {
-        return vec2(0.0, 0.0);
+        return (vec2(0.0, 0.0), 0.0);
     }
     // φ = π/4 · b/a, or π/2 − π/4 · a/b whose cosine and sine swap those of π/4 · a/b:
     // both reduce to one angle within ±π/4, where short polynomials are exact to f32.
-    if a * a > b * b {
+    let (a2, b2) = (a * a, b * b);
+    if a2 > b2 {
         let (sin, cos) = sin_cos_quarter((PI / 4.0) * (b / a));
-        vec2(a * cos, a * sin)
+        (vec2(a * cos, a * sin), a2)
     } else {
         let (sin, cos) = sin_cos_quarter((PI / 4.0) * (a / b));
-        vec2(b * sin, b * cos)
+        (vec2(b * sin, b * cos), b2)
     }
 }
 
