@@ -487,3 +487,70 @@ pub fn default_camera(desc: &SceneDescription) -> Camera {
     let s = &desc.settings;
     Camera::new(t, s.width, s.height, fov, crate::camera::FovAxis::X, crate::camera::Lens::PINHOLE, 0.0)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::vec3;
+    use crate::sampling::Rng;
+
+    fn scene_of(normals: Vec<Vec3>) -> Scene {
+        let mesh = Mesh {
+            name: "tri".into(),
+            positions: vec![vec3(-1.0, -1.0, 0.0), vec3(1.0, -1.0, 0.3), vec3(0.0, 1.0, -0.2)],
+            normals,
+            uvs: Vec::new(),
+            indices: vec![[0, 1, 2]],
+            material: 0,
+            emission: None,
+            alpha: None,
+            sphere: None,
+        };
+        let mut desc = SceneDescription { meshes: vec![mesh], ..Default::default() };
+        desc.camera = Some(default_camera(&desc));
+        Scene::build(desc).unwrap()
+    }
+
+    /// Hits take the frames kept per triangle where the shading normal is the same over the
+    /// triangle, and interpolate where it is not: either way the frame is the one built
+    /// from the mesh data at the hit point.
+    #[test]
+    fn hit_frames_match_the_mesh_data() {
+        let tilted = vec3(0.2, 0.1, 1.0);
+        let cases = [
+            ("no normals", Vec::new()),
+            ("equal normals", vec![tilted; 3]),
+            ("varying normals", vec![vec3(0.0, 0.0, 1.0), vec3(0.5, 0.0, 1.0), vec3(0.0, -0.4, 1.0)]),
+        ];
+        let mut rng = Rng::new(3, 0, 0);
+        for (name, normals) in cases {
+            let scene = scene_of(normals.clone());
+            let mesh = &scene.meshes[0];
+            let [p0, p1, p2] = mesh.triangle(0);
+            let ng = (p1 - p0).cross(p2 - p0).normalize();
+            for _ in 0..1000 {
+                let (mut b1, mut b2) = (rng.next_f32(), rng.next_f32());
+                if b1 + b2 > 1.0 {
+                    (b1, b2) = (1.0 - b1, 1.0 - b2);
+                }
+                let b0 = 1.0 - b1 - b2;
+                let target = p0 * b0 + p1 * b1 + p2 * b2;
+                let o = target + vec3(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 2.0);
+                let si = scene.intersect(&Ray::new(o, (target - o).normalize())).expect("the ray meets the triangle");
+                let ns = if normals.is_empty() {
+                    ng
+                } else {
+                    (normals[0] * b0 + normals[1] * b1 + normals[2] * b2).normalize()
+                };
+                let expected = Frame::from_normal_tangent(ns, p1 - p0);
+                let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-4;
+                assert!(close(si.ng, ng), "{name}: geometric normal {:?}, expected {ng:?}", si.ng);
+                assert!(
+                    close(si.frame.n, expected.n) && close(si.frame.s, expected.s) && close(si.frame.t, expected.t),
+                    "{name}: frame {:?} at ({b1}, {b2}), expected {expected:?}",
+                    si.frame
+                );
+            }
+        }
+    }
+}
