@@ -361,8 +361,7 @@ mod tests {
         assert!((total - 1.0).abs() < 1e-4);
     }
 
-    /// One bin (a scene's only light, a light's only triangle): the sample itself, as the
-    /// search would give it for a two-bin distribution whose second bin is empty.
+    /// The fused form agrees with the power heuristic's weight divided by the density.
     #[test]
     fn power_heuristic_over_pdf_is_the_weight_over_the_density() {
         let mut rng = Rng::new(9, 0, 0);
@@ -377,6 +376,8 @@ mod tests {
         assert_eq!(power_heuristic_over_pdf(1e30, 1.0), 0.0);
     }
 
+    /// One bin (a scene's only light, a light's only triangle): the sample itself, as the
+    /// search would give it for a two-bin distribution whose second bin is empty.
     #[test]
     fn single_bin_passes_the_sample_through() {
         let (one, two) = (Distribution1D::new(&[3.0]), Distribution1D::new(&[3.0, 0.0]));
