@@ -369,7 +369,9 @@ mod tests {
             // Densities over twelve decades, as solid-angle densities span.
             let (a, b) = (10f32.powf(12.0 * rng.next_f32() - 6.0), 10f32.powf(12.0 * rng.next_f32() - 6.0));
             let (fused, two_steps) = (power_heuristic_over_pdf(a, b), power_heuristic(a, b) / a);
-            assert!((fused - two_steps).abs() <= 4.0 * f32::EPSILON * two_steps, "{a} {b}: {fused} vs {two_steps}");
+            // Four roundings (two squares, a sum, a division) against five (the same and a
+            // second division), each within ε/2: apart by at most 4.5 ε (observed 1.5 ε).
+            assert!((fused - two_steps).abs() <= 4.5 * f32::EPSILON * two_steps, "{a} {b}: {fused} vs {two_steps}");
         }
         assert_eq!(power_heuristic_over_pdf(0.0, 0.0), 0.0);
         assert_eq!(power_heuristic_over_pdf(1e-30, 1e-30), 0.0);

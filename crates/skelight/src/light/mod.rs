@@ -212,6 +212,16 @@ impl AreaEmitter {
         Some(AreaEmitter { mesh, radiance, triangles, normals, area, distribution, geometric_normals })
     }
 
+    /// Density per solid angle, at the receiver, of a point drawn uniformly by area, with
+    /// geometric normal `ng` at offset `d` from the receiver (|d|² = `dist2`, |d| = `dist`):
+    /// dist² / (cos · area) with cos = |ng · d| / dist, from the unnormalised d so that its one
+    /// division need not wait for the direction's. `None` for a point seen edge-on.
+    #[inline]
+    fn solid_angle_pdf(&self, ng: Vec3, d: Vec3, dist2: f32, dist: f32) -> Option<f32> {
+        let projected = ng.dot(d).abs() * self.area;
+        (projected > 0.0).then(|| dist2 * dist / projected)
+    }
+
     fn sample_point(&self, u: Vec2) -> AreaPoint {
         let (tri, _, rem) = self.distribution.sample_discrete(u.x);
         let b = uniform_triangle(vec2(rem, u.y));
@@ -295,16 +305,10 @@ impl Light {
                 if !(dist2 > 0.0) {
                     return None;
                 }
-                // From d rather than the unit direction, so that the density's division
-                // runs beside the normalisation's instead of after it.
-                let projected = ng.dot(d).abs() * a.area;
-                if projected <= 0.0 {
-                    return None;
-                }
                 let dist = dist2.sqrt();
+                let pdf = a.solid_angle_pdf(ng, d, dist2, dist)?;
                 let wi = d / dist;
                 let radiance = if ns.dot(d) < 0.0 { a.radiance } else { Rgb::BLACK };
-                let pdf = dist2 * dist / projected;
                 Some(LightSample { wi, dist, radiance, pdf, delta: false, p: q, n: ng })
             }
             Light::Point { position, intensity } => {
@@ -474,13 +478,7 @@ impl Light {
             Light::Area(a) => {
                 let d = q - p;
                 let dist2 = d.length_squared();
-                // dist² / (cos · area) with cos = |ng · d| / dist: one division.
-                let projected = ng.dot(d).abs() * a.area;
-                if projected <= 0.0 {
-                    0.0
-                } else {
-                    dist2 * dist2.sqrt() / projected
-                }
+                a.solid_angle_pdf(ng, d, dist2, dist2.sqrt()).unwrap_or(0.0)
             }
             _ => 0.0,
         }

@@ -11,12 +11,20 @@ pub struct Diffuse {
     pub reflectance: Texture,
 }
 
-/// Samples the cosine lobe and returns the sample weighted by `eval/pdf`.
-pub(crate) fn sample_cosine<M: BsdfModel + ?Sized>(model: &M, ctx: &BsdfCtx, wi: Vec3, u: Vec2) -> Option<BsdfSample> {
+/// A direction from the cosine lobe, on the side of `wi` when that is above the surface,
+/// and its density; `None` from below the surface or for a grazing sample.
+fn cosine_lobe(wi: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
     if wi.z <= 0.0 {
         return None;
     }
-    weighted_sample(model, ctx, wi, cosine_hemisphere(u))
+    let wo = cosine_hemisphere(u);
+    let pdf = cosine_hemisphere_pdf(wo.z);
+    (pdf > 0.0).then_some((wo, pdf))
+}
+
+/// Samples the cosine lobe and returns the sample weighted by `eval/pdf`.
+pub(crate) fn sample_cosine<M: BsdfModel + ?Sized>(model: &M, ctx: &BsdfCtx, wi: Vec3, u: Vec2) -> Option<BsdfSample> {
+    weighted_sample(model, ctx, wi, cosine_lobe(wi, u)?.0)
 }
 
 impl BsdfModel for Diffuse {
@@ -30,14 +38,7 @@ impl BsdfModel for Diffuse {
         upper_cosine_pdf(wi, wo)
     }
     fn sample(&self, ctx: &BsdfCtx, wi: Vec3, _: f32, u: Vec2) -> Option<BsdfSample> {
-        if wi.z <= 0.0 {
-            return None;
-        }
-        let wo = cosine_hemisphere(u);
-        let pdf = cosine_hemisphere_pdf(wo.z);
-        if !(pdf > 0.0) {
-            return None;
-        }
+        let (wo, pdf) = cosine_lobe(wi, u)?;
         // eval / pdf without the division: the cosine and 1/π cancel.
         Some(BsdfSample { wo, weight: self.reflectance.eval(ctx.uv), pdf, delta: false })
     }
