@@ -52,23 +52,25 @@ pub fn par_dir_collapse(x: &mut Complex, keep: Option<&[bool]>, layers: u32, dat
     collapse_from(x, keep, layers, dates, None)
 }
 
-/// Sub-steps of a layer in Alg. 2's order: direction (axis), orientation, then dimension
-/// of the larger face from 3 down to 1.
-const SUB_STEPS: usize = 18;
-
-fn sub_step(axis: usize, sign: i8, dim: usize) -> usize {
-    (axis * 2 + usize::from(sign < 0)) * 3 + (3 - dim)
-}
-
 /// Alg. 2 starting from `candidates`, the only faces that may be free (every face whose
 /// cofaces changed since the complex was last without free pairs), or from every free
 /// face if `None`.
 ///
-/// The free pairs of a layer are fixed when it starts: the border L is made of their faces,
-/// a face f paired with its facet g is maximal (so never the smaller face of a pair), and a
-/// face of L that was not free at the start is such an f. So within a layer a pair (f, g)
-/// is removed in its own sub-step if both faces are still there, and no pair appears later
-/// in the layer. Pairs of one sub-step never share a face, so their order does not matter.
+/// A layer of Alg. 2 comes down to one removal per face: every maximal face f with a free
+/// facet when the layer starts goes, with the first of those facets in the sub-step order
+/// (direction, then the facet on f's lower side first), and nothing else goes. Why:
+/// - The border L is the faces of the free pairs at the layer's start. A pair free later in
+///   the layer with both faces in L was free at the start (cofaces only disappear, and a
+///   face of L with a coface was not maximal, so it was in L as a free facet).
+/// - A free facet g has f as its only coface and f is maximal, so f and g leave the complex
+///   only by a pair with larger face f; a sub-step holds at most one pair per f.
+/// - So at the sub-step of f's first free facet g, nothing has touched f or g and the pair
+///   (f, g) goes; f's later free facets lose their coface and stay, born this layer.
+///
+/// No pair of a layer then depends on another, and the layer is one pass in any order
+/// (`a_layer_is_alg2_sub_step_by_sub_step` checks this against the algorithm as printed).
+/// Since every face free at a layer's start is left maximal or removed by its end, the
+/// next layer's candidates are the faces whose coface count fell to one during it.
 fn collapse_from(
     x: &mut Complex,
     keep: Option<&[bool]>,
@@ -82,9 +84,9 @@ fn collapse_from(
 
 /// The face array cut into contiguous runs of whole planes, one per task. A pair whose
 /// smaller face lies at least `margin` (two planes) inside its slab touches only faces of
-/// that slab, so such pairs of one sub-step are removed in parallel without atomics; the few
-/// near a slab's edge are removed after them, in order. Pairs of one sub-step share no face,
-/// so the result is the same as removing them one by one, whatever the number of slabs.
+/// that slab, so such pairs of one layer are removed in parallel without atomics; the few
+/// near a slab's edge are removed after them. Pairs of a layer share no face, so the result
+/// is the same as removing them one by one, whatever the number of slabs.
 struct Slabs {
     /// Slab k holds faces bounds[k]..bounds[k + 1].
     bounds: Vec<usize>,
@@ -134,10 +136,28 @@ impl Slabs {
 /// A free pair (larger face, smaller face), as face indices.
 type Pair = (usize, usize);
 
-/// A slab's free pairs of the layer, by sub-step.
-type ByStep = Vec<Vec<Pair>>;
+/// How many candidates ahead [`prefetch_around`] asks for the state bytes.
+const AHEAD: usize = 12;
 
-/// Below this many pairs in a sub-step, one thread removes them all.
+/// Asks the cache for the lines of `state` around face `g`: its cofaces and their facets lie
+/// within one stride of it on each axis. Finding a layer's pairs is otherwise a chain of
+/// dependent loads (g, then its coface, then the coface's facets), mostly cache misses in a
+/// large grid; fetched early, the find takes 2.3× less time on the door.
+#[inline(always)]
+fn prefetch_around(state: &[u8], [_, sy, sz]: [usize; 3], g: usize) {
+    for i in [g, g.wrapping_sub(sy), g + sy, g.wrapping_sub(sz), g + sz] {
+        if i < state.len() {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: a prefetch of an address inside the slice; it reads nothing.
+            unsafe {
+                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+                _mm_prefetch::<_MM_HINT_T0>(state.as_ptr().add(i).cast());
+            }
+        }
+    }
+}
+
+/// Below this many pairs in a layer, one thread removes them all.
 const PARALLEL_PAIRS: usize = 1 << 14;
 
 /// Mutable view of the collapse's arrays from face `offset` on (a slab, or everything).
@@ -148,15 +168,13 @@ struct Removal<'a> {
 }
 
 impl Removal<'_> {
-    /// Removes the pair (f, g) found free when layer `layer` started, if both faces are
-    /// still there, and hands each facet that became free to `queue`.
+    /// Removes the pair (f, g) chosen when layer `layer` started, and hands each facet
+    /// that became free to `queue`.
     #[inline]
     fn remove(&mut self, steps: &Neighbours, (f, g): Pair, layer: Date, mut queue: impl FnMut(usize)) {
         let (f, g) = (f - self.offset, g - self.offset);
         let state = &mut *self.state;
-        if state[f] & state[g] & ALIVE == 0 {
-            return;
-        }
+        debug_assert!(state[f] & state[g] & ALIVE != 0, "a pair of the layer was removed twice");
         state[f] &= !ALIVE;
         state[g] &= !ALIVE;
         if let Some((_, death)) = self.dates.as_mut() {
@@ -187,8 +205,8 @@ impl Removal<'_> {
     }
 }
 
-/// [`collapse_from`] over the given slabs: each layer finds its free pairs slab by slab, then
-/// removes each sub-step's pairs inside the slabs in parallel and those near slab edges after.
+/// [`collapse_from`] over the given slabs: each layer finds its pairs slab by slab, then
+/// removes those inside the slabs in parallel and those near slab edges after.
 fn collapse_in_slabs(
     x: &mut Complex,
     keep: Option<&[bool]>,
@@ -200,6 +218,7 @@ fn collapse_in_slabs(
     let n = x.cells.len();
     let layers = if dates.is_some() { layers.min(MAX_DATED_LAYERS) } else { layers };
     let steps = Neighbours::new(x);
+    let strides = x.strides();
     let mut state = initial_state(x, keep, &steps);
     if let Some(d) = dates.as_deref_mut() {
         d.birth = state.par_iter().map(|&s| if s & (ALIVE | COUNT) == ALIVE { 0 } else { NEVER }).collect();
@@ -224,25 +243,25 @@ fn collapse_in_slabs(
             })
             .collect(),
     };
-    let mut buckets: Vec<ByStep> = vec![vec![Vec::new(); SUB_STEPS]; k];
+    let mut pairs: Vec<Vec<Pair>> = vec![Vec::new(); k];
     let mut border: Vec<Vec<Pair>> = vec![Vec::new(); k];
     let mut layer = 0;
     while layer < layers {
-        // The free pairs when the layer starts, by slab and sub-step.
-        let find = |(cands, slab_buckets): (&Vec<usize>, &mut ByStep)| {
-            let mut found = 0;
-            for &g in cands {
-                if let Some((f, step)) = steps.free_pair(&state, g) {
-                    slab_buckets[step as usize].push((f, g));
-                    found += 1;
+        // The pairs of the layer, by slab, from the state at its start.
+        let find = |(cands, found): (&mut Vec<usize>, &mut Vec<Pair>)| {
+            for (i, &g) in cands.iter().enumerate() {
+                if let Some(&ahead) = cands.get(i + AHEAD) {
+                    prefetch_around(&state, strides, ahead);
                 }
+                found.extend(steps.layer_pair(&state, g));
             }
-            found
+            cands.clear();
+            found.len()
         };
         let found: usize = if candidates.iter().map(Vec::len).sum::<usize>() >= PARALLEL_PAIRS {
-            candidates.par_iter().zip(&mut buckets).map(find).sum()
+            candidates.par_iter_mut().zip(&mut pairs).map(find).sum()
         } else {
-            candidates.iter().zip(&mut buckets).map(find).sum()
+            candidates.iter_mut().zip(&mut pairs).map(find).sum()
         };
         if found == 0 {
             break;
@@ -250,55 +269,43 @@ fn collapse_in_slabs(
         layer += 1;
         let date = layer as Date;
         // Every face is queued at most once per layer: a face becomes a candidate when its
-        // coface count drops to one, which happens once, and the leftovers below had a
-        // count of one when the layer started.
-        candidates.iter_mut().for_each(Vec::clear);
-        for step in 0..SUB_STEPS {
-            let pairs: usize = buckets.iter().map(|b| b[step].len()).sum();
-            if pairs >= PARALLEL_PAIRS {
-                let states = slabs.split(&mut state);
-                let mut date_parts: Vec<Option<(&mut [Date], &mut [Date])>> = match dates.as_deref_mut() {
-                    Some(d) => slabs.split(&mut d.birth).into_iter().zip(slabs.split(&mut d.death)).map(Some).collect(),
-                    None => (0..k).map(|_| None).collect(),
-                };
-                states
-                    .into_par_iter()
-                    .zip(date_parts.par_drain(..))
-                    .zip(candidates.par_iter_mut())
-                    .zip(buckets.par_iter_mut())
-                    .zip(border.par_iter_mut())
-                    .enumerate()
-                    .for_each(|(s, ((((state, dates), next), slab_buckets), border))| {
-                        let mut view = Removal { offset: slabs.bounds[s], state, dates };
-                        for &(f, g) in &slab_buckets[step] {
-                            if slabs.inside(s, g) {
-                                view.remove(&steps, (f, g), date, |t| next.push(t));
-                            } else {
-                                border.push((f, g));
-                            }
-                        }
-                    });
-            } else {
-                // Too few to be worth waking the other threads.
-                for (b, slab_buckets) in border.iter_mut().zip(&buckets) {
-                    b.extend_from_slice(&slab_buckets[step]);
-                }
-            }
-            let mut whole = Removal {
-                offset: 0,
-                state: &mut state,
-                dates: dates.as_deref_mut().map(|d| (&mut d.birth[..], &mut d.death[..])),
+        // coface count drops to one, which happens once.
+        if found >= PARALLEL_PAIRS {
+            let states = slabs.split(&mut state);
+            let mut date_parts: Vec<Option<(&mut [Date], &mut [Date])>> = match dates.as_deref_mut() {
+                Some(d) => slabs.split(&mut d.birth).into_iter().zip(slabs.split(&mut d.death)).map(Some).collect(),
+                None => (0..k).map(|_| None).collect(),
             };
-            for pair in border.iter_mut().flat_map(|b| b.drain(..)) {
-                whole.remove(&steps, pair, date, |t| candidates[slabs.of(t)].push(t));
+            states
+                .into_par_iter()
+                .zip(date_parts.par_drain(..))
+                .zip(candidates.par_iter_mut())
+                .zip(pairs.par_iter_mut())
+                .zip(border.par_iter_mut())
+                .enumerate()
+                .for_each(|(s, ((((state, dates), next), pairs), border))| {
+                    let mut view = Removal { offset: slabs.bounds[s], state, dates };
+                    for (f, g) in pairs.drain(..) {
+                        if slabs.inside(s, g) {
+                            view.remove(&steps, (f, g), date, |t| next.push(t));
+                        } else {
+                            border.push((f, g));
+                        }
+                    }
+                });
+        } else {
+            // Too few to be worth waking the other threads.
+            for (b, p) in border.iter_mut().zip(&mut pairs) {
+                b.append(p);
             }
         }
-        // Pairs whose larger face went with another facet are not free any more; the
-        // others stay free for the next layer.
-        for (next, slab_buckets) in candidates.iter_mut().zip(&mut buckets) {
-            for bucket in slab_buckets.iter_mut() {
-                next.extend(bucket.drain(..).map(|p| p.1).filter(|&g| state[g] & (ALIVE | COUNT) == ALIVE | 1));
-            }
+        let mut whole = Removal {
+            offset: 0,
+            state: &mut state,
+            dates: dates.as_deref_mut().map(|d| (&mut d.birth[..], &mut d.death[..])),
+        };
+        for pair in border.iter_mut().flat_map(|b| b.drain(..)) {
+            whole.remove(&steps, pair, date, |t| candidates[slabs.of(t)].push(t));
         }
     }
     x.cells.par_iter_mut().zip(&state).for_each(|(c, &s)| *c = s & ALIVE != 0);
@@ -331,33 +338,33 @@ fn initial_state(x: &Complex, keep: Option<&[bool]>, steps: &Neighbours) -> Vec<
             return;
         }
         let ty = (p[0] & 1 | (p[1] & 1) << 1 | (p[2] & 1) << 2) as u8;
-        let count = steps.cofaces[ty as usize].iter().filter(|&&(o, _)| x.cells[i.wrapping_add_signed(o)]).count();
+        let count = steps.cofaces[ty as usize].iter().filter(|&&o| x.cells[i.wrapping_add_signed(o)]).count();
         let kept = if keep.is_some_and(|k| k[i]) { KEPT_BIAS } else { 0 };
         *s = ALIVE | ty << TYPE_SHIFT | (count as u8 + kept);
     });
     state
 }
 
-/// For each of the eight face types, the array offsets of a face's facets and cofaces
-/// (the padded array has them all), the latter with the sub-step of the pair they form.
+/// For each of the eight face types, the array offsets of a face's facets, in Alg. 2's
+/// sub-step order (by axis, the facet on the face's lower side first), and of its cofaces
+/// (the padded array has them all).
 struct Neighbours {
     facets: [Vec<isize>; 8],
-    cofaces: [Vec<(isize, u8)>; 8],
+    cofaces: [Vec<isize>; 8],
 }
 
 impl Neighbours {
     fn new(x: &Complex) -> Neighbours {
         let stride = x.strides();
         let mut facets: [Vec<isize>; 8] = Default::default();
-        let mut cofaces: [Vec<(isize, u8)>; 8] = Default::default();
+        let mut cofaces: [Vec<isize>; 8] = Default::default();
         for ty in 0..8usize {
-            let coface_dim = ty.count_ones() as usize + 1;
             for (a, &s) in stride.iter().enumerate() {
                 let s = s as isize;
                 if ty >> a & 1 == 1 {
                     facets[ty].extend([-s, s]);
                 } else {
-                    cofaces[ty].extend([(-s, -1), (s, 1)].map(|(o, sign)| (o, sub_step(a, sign, coface_dim) as u8)));
+                    cofaces[ty].extend([-s, s]);
                 }
             }
         }
@@ -370,18 +377,20 @@ impl Neighbours {
         &self.facets[(s >> TYPE_SHIFT) as usize]
     }
 
-    /// The face `f` forming a free pair with `g` (g in the complex, not kept, with exactly
-    /// one coface left) and the pair's sub-step; `None` if g is not free.
+    /// The pair removed this layer with smaller face `g`, if any (see [`collapse_from`]):
+    /// g is free (in the complex, not kept, one coface f left) and is f's first free facet.
     #[inline]
-    fn free_pair(&self, state: &[u8], g: usize) -> Option<(usize, u8)> {
-        let s = state[g];
-        if s & (ALIVE | COUNT) != ALIVE | 1 {
+    fn layer_pair(&self, state: &[u8], g: usize) -> Option<Pair> {
+        let is_free = |t: usize| state[t] & (ALIVE | COUNT) == ALIVE | 1;
+        if !is_free(g) {
             return None;
         }
-        self.cofaces[(s >> TYPE_SHIFT) as usize]
+        let f = self.cofaces[(state[g] >> TYPE_SHIFT) as usize]
             .iter()
-            .map(|&(o, step)| (g.wrapping_add_signed(o), step))
-            .find(|&(f, _)| state[f] & ALIVE != 0)
+            .map(|&o| g.wrapping_add_signed(o))
+            .find(|&f| state[f] & ALIVE != 0)?;
+        let first = self.facets(state[f]).iter().map(|&o| f.wrapping_add_signed(o)).find(|&t| is_free(t));
+        (first == Some(g)).then_some((f, g))
     }
 }
 
@@ -654,6 +663,90 @@ mod tests {
                 for count in [2, 5, 9] {
                     assert!(run(count) == one, "seed {seed}, {count} slabs, kept faces: {}", keep.is_some());
                 }
+            }
+        }
+    }
+
+    /// Alg. 2 as the thesis prints it, one layer: L is the faces of the free pairs when the
+    /// layer starts; then for each direction t, orientation s (0: g on f's lower side) and
+    /// dimension d from 3 down, the pairs free in the current complex with g not in W, of
+    /// that kind, both faces in L, are removed. Returns the faces removed, or `None` if no
+    /// face was free (the loop's condition).
+    fn literal_alg2_layer(x: &mut Complex, keep: &[bool]) -> Option<Vec<usize>> {
+        // Free pairs (f, g, direction, g on f's upper side) of the current complex.
+        let free_pairs = |x: &Complex| -> Vec<(usize, usize, usize, bool)> {
+            (0..x.cells.len())
+                .filter(|&g| x.cells[g] && !keep[g] && x.coface_count(g) == 1)
+                .map(|g| {
+                    let (f, axis, sign) = x.cofaces(g).into_iter().find(|c| x.cells[c.0]).unwrap();
+                    (f, g, axis, sign < 0)
+                })
+                .collect()
+        };
+        let start = free_pairs(x);
+        if start.is_empty() {
+            return None;
+        }
+        let border: std::collections::HashSet<usize> = start.iter().flat_map(|p| [p.0, p.1]).collect();
+        let mut removed = Vec::new();
+        for t in 0..3 {
+            for upper in [false, true] {
+                for d in (1..=3).rev() {
+                    let chosen: Vec<(usize, usize)> = free_pairs(x)
+                        .into_iter()
+                        .filter(|&(f, _, axis, up)| axis == t && up == upper && x.dim(f) == d)
+                        .filter(|(f, g, ..)| border.contains(f) && border.contains(g))
+                        .map(|(f, g, ..)| (f, g))
+                        .collect();
+                    for (f, g) in chosen {
+                        x.cells[f] = false;
+                        x.cells[g] = false;
+                        removed.extend([f, g]);
+                    }
+                }
+            }
+        }
+        Some(removed)
+    }
+
+    /// The one-pass layers of [`collapse_from`] give Alg. 2's layers exactly: after every
+    /// layer the complex is the one the algorithm as printed leaves, with and without kept
+    /// faces, and the death and birth dates follow from those layers.
+    #[test]
+    fn a_layer_is_alg2_sub_step_by_sub_step() {
+        for seed in 0..8 {
+            let set = random_object([9, 8, 7], 100 + seed, 0.8);
+            let x = Complex::from_voxels(&set);
+            let kept: Vec<bool> = (0..x.cells.len())
+                .map(|i| x.cells[i] && i % 5 == 0 && x.coords(i).iter().all(|c| c % 2 == 0))
+                .collect();
+            for keep in [vec![false; x.cells.len()], kept] {
+                let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
+                let mut fast = x.clone();
+                let layers = collapse_from(&mut fast, Some(&keep), u32::MAX, Some(&mut dates), None);
+                let mut slow = x.clone();
+                let mut death = vec![NEVER; x.cells.len()];
+                let mut birth: Vec<Date> =
+                    (0..x.cells.len()).map(|i| if x.cells[i] && x.coface_count(i) == 0 { 0 } else { NEVER }).collect();
+                let mut layer = 0;
+                while let Some(removed) = literal_alg2_layer(&mut slow, &keep) {
+                    layer += 1;
+                    for i in removed {
+                        death[i] = layer;
+                    }
+                    for (i, b) in birth.iter_mut().enumerate() {
+                        let gone_or_maximal = x.cells[i] && (!slow.cells[i] || slow.coface_count(i) == 0);
+                        if *b == NEVER && gone_or_maximal {
+                            *b = layer;
+                        }
+                    }
+                    let mut y = x.clone();
+                    collapse_from(&mut y, Some(&keep), u32::from(layer), None, None);
+                    assert!(y == slow, "seed {seed}: layer {layer} differs");
+                }
+                assert_eq!(layers, u32::from(layer), "seed {seed}");
+                assert!(layer > 2, "seed {seed}: the object should take several layers");
+                assert!(fast == slow && dates.death == death && dates.birth == birth, "seed {seed}: dates differ");
             }
         }
     }
