@@ -135,6 +135,60 @@ impl<T: Clone> Grid<T> {
     }
 }
 
+/// A grid's layout with one cell of padding on every side: every voxel then has its 26
+/// neighbours in the array at fixed offsets, so inner loops need no bounds checks and no
+/// division to find coordinates.
+pub(crate) struct Padded {
+    dims: [usize; 3],
+    row: usize,
+    plane: usize,
+}
+
+impl Padded {
+    pub(crate) fn new(dims: [usize; 3]) -> Padded {
+        let row = dims[0] + 2;
+        Padded { dims, row, plane: row * (dims[1] + 2) }
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        self.plane * (self.dims[2] + 2)
+    }
+
+    /// Steps to the next cell along x, y and z.
+    pub(crate) fn strides(&self) -> [usize; 3] {
+        [1, self.row, self.plane]
+    }
+
+    /// Index of the first voxel of row (y, z) (grid coordinates).
+    fn row_start(&self, y: usize, z: usize) -> usize {
+        (z + 1) * self.plane + (y + 1) * self.row + 1
+    }
+
+    /// The padded array of `map` over `data` (one value per voxel), padding set to `fill`.
+    pub(crate) fn pad<T: Copy, U: Copy>(&self, data: &[T], fill: U, map: impl Fn(T) -> U) -> Vec<U> {
+        let [nx, ny, _] = self.dims;
+        let mut out = vec![fill; self.len()];
+        for (k, row) in data.chunks(nx).enumerate() {
+            let at = self.row_start(k % ny, k / ny);
+            out[at..at + nx].iter_mut().zip(row).for_each(|(o, &v)| *o = map(v));
+        }
+        out
+    }
+
+    /// The voxels' values of a padded array, in the grid's order.
+    pub(crate) fn unpad<T: Copy>(&self, padded: &[T]) -> Vec<T> {
+        let [nx, ny, nz] = self.dims;
+        let mut out = Vec::with_capacity(nx * ny * nz);
+        for z in 0..nz {
+            for y in 0..ny {
+                let at = self.row_start(y, z);
+                out.extend_from_slice(&padded[at..at + nx]);
+            }
+        }
+        out
+    }
+}
+
 /// Linear indices of the 6-neighbours of voxel `i` inside the grid.
 pub fn neighbours6(dims: [usize; 3], i: usize) -> impl Iterator<Item = usize> {
     let [nx, ny, nz] = dims;

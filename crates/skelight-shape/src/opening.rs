@@ -9,7 +9,7 @@
 use std::collections::VecDeque;
 
 use crate::distance::lines;
-use crate::grid::{neighbours6, Grid};
+use crate::grid::{Grid, Padded};
 
 /// The opening map and an opening forest.
 pub struct Opening {
@@ -101,15 +101,17 @@ fn dilate_line(
 /// its radius already. Each voxel is thus entered only when its best budget rises.
 pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
     let spec = l1.spec;
-    let d = &l1.data;
-    // Centres by radius (a counting sort: radii are small), largest first.
-    let max_radius = d.iter().copied().max().unwrap_or(0) as usize;
+    let max_radius = l1.data.iter().copied().max().unwrap_or(0) as usize;
     assert!(
         max_radius <= spec.dims.iter().sum::<usize>(),
         "l1_opening wants an L1 distance map with a finite border (from `l1(set, true)`)"
     );
-    // first[r]: where radius r starts among the centres (voxels outside the set, radius 0,
-    // are none).
+    // Radius 0 around the grid: walks stop there as they do outside the set.
+    let layout = Padded::new(spec.dims);
+    let d = layout.pad(&l1.data, 0, |r| r);
+    let [_, sy, sz] = layout.strides();
+    // Centres by radius (a counting sort: radii are small), largest first. first[r]: where
+    // radius r starts among the centres (voxels outside the set, radius 0, are none).
     let mut first = vec![0u32; max_radius + 2];
     d.iter().filter(|&&r| r > 0).for_each(|&r| first[r as usize + 1] += 1);
     for r in 1..first.len() {
@@ -145,7 +147,7 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
         while budget > 1 && !frontier.is_empty() {
             budget -= 1;
             for &i in &frontier {
-                for j in neighbours6(spec.dims, i) {
+                for j in [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz] {
                     if d[j] > 0 {
                         enter(j, budget, r, &mut next);
                     }
@@ -156,7 +158,7 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
         }
         frontier.clear();
     }
-    Grid { spec, data: opening }
+    Grid { spec, data: layout.unpad(&opening) }
 }
 
 /// Decenterness DC₁ = π₁ − D₁ (Def. 6.4): 0 on the centres of the largest balls, growing
