@@ -15,6 +15,18 @@ use rayon::prelude::*;
 
 use crate::grid::Grid;
 
+/// The voxels containing a face along one axis of `n` voxels, from the face's doubled
+/// coordinate `c` on that axis: an odd coordinate 2a+1 lies in voxel a, an even one 2a in
+/// voxels a−1 and a (those of them inside the grid).
+#[inline]
+pub fn voxel_span(c: usize, n: usize) -> std::ops::Range<usize> {
+    if c & 1 == 1 {
+        c / 2..c / 2 + 1
+    } else {
+        (c / 2).saturating_sub(1)..(c / 2 + 1).min(n)
+    }
+}
+
 /// A set of faces of the doubled grid; [`Complex::from_voxels`] makes it closed (a complex).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Complex {
@@ -198,20 +210,11 @@ impl Complex {
     /// [`Complex::voxels_around`] the face at doubled-grid coordinates `p`.
     pub fn voxels_around_at(&self, p: [usize; 3]) -> Few<usize, 8> {
         let [w, h, d] = self.dims.map(|n| (n - 1) / 2);
-        // Along each axis, the voxels lo..hi: an odd coordinate 2a+1 lies in voxel a, an
-        // even one 2a in a−1 and a (those of them inside the grid).
-        let range = |c: usize, n: usize| {
-            if c & 1 == 1 {
-                (c / 2, c / 2 + 1)
-            } else {
-                ((c / 2).saturating_sub(1), (c / 2 + 1).min(n))
-            }
-        };
-        let ((x0, x1), (y0, y1), (z0, z1)) = (range(p[0], w), range(p[1], h), range(p[2], d));
+        let [xs, ys, zs] = [voxel_span(p[0], w), voxel_span(p[1], h), voxel_span(p[2], d)];
         let mut out = Few::new(0);
-        for z in z0..z1 {
-            for y in y0..y1 {
-                for x in x0..x1 {
+        for z in zs {
+            for y in ys.clone() {
+                for x in xs.clone() {
                     out.push((z * h + y) * w + x);
                 }
             }

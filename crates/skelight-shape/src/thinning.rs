@@ -9,7 +9,7 @@
 //! topology is kept. Only faces next to a removed pair can become free, so each layer works
 //! from the previous layer's leftovers and neighbours: linear time overall.
 
-use crate::complex::Complex;
+use crate::complex::{voxel_span, Complex};
 use crate::distance::l1;
 use crate::grid::Grid;
 use crate::opening::l1_opening;
@@ -492,32 +492,56 @@ pub fn edge_constraint(
     constraint: EdgeConstraint,
 ) -> Vec<bool> {
     let mut keep = vec![false; x.cells.len()];
-    x.par_for_each_face(&mut keep, |p, e, kept| {
-        let edge = p.iter().map(|c| c & 1).sum::<usize>() == 1;
-        if !edge || !x.cells[e] {
-            return;
+    let [_, sy, sz] = x.strides();
+    let [nx, ny, nz] = x.dims;
+    let [w, h, d] = distance.spec.dims;
+    keep.par_chunks_mut(sz).enumerate().skip(1).take(nz).for_each(|(pz, plane)| {
+        let z = pz - 1;
+        for y in 0..ny {
+            if y & 1 == 1 && z & 1 == 1 {
+                continue; // squares and voxels only
+            }
+            // Where y and z are even the row's edges lie along x (odd x); elsewhere they
+            // cross it (even x).
+            let first_x = usize::from(y & 1 == 0 && z & 1 == 0);
+            let mut rows = [0; 4];
+            let mut n_rows = 0;
+            for vz in voxel_span(z, d) {
+                for vy in voxel_span(y, h) {
+                    rows[n_rows] = (vz * h + vy) * w;
+                    n_rows += 1;
+                }
+            }
+            for px in (first_x..nx).step_by(2) {
+                let local = (y + 1) * sy + px + 1;
+                let e = pz * sz + local;
+                if !x.cells[e] {
+                    continue;
+                }
+                let Some(lifespan) = dates.lifespan(e) else { continue };
+                // D and DC of an edge: their largest values over the voxels around it.
+                let (mut dmax, mut dc) = (0i64, 0i64);
+                for &row in &rows[..n_rows] {
+                    for v in voxel_span(px, w).map(|vx| row + vx) {
+                        let (dv, ov) = (distance.data[v] as i64, opening.data[v] as i64);
+                        dmax = dmax.max(dv);
+                        dc = dc.max(ov - dv);
+                    }
+                }
+                let birth = dates.birth[e] as i64;
+                let bound = match constraint {
+                    EdgeConstraint::Thesis => dc + birth - dmax,
+                    EdgeConstraint::ReleasedCode => dc + birth,
+                };
+                plane[local] = lifespan as i64 > bound;
+            }
         }
-        let Some(lifespan) = dates.lifespan(e) else { return };
-        // D and DC of an edge: their largest values over the voxels around it.
-        let (mut d, mut dc) = (0i64, 0i64);
-        for v in x.voxels_around_at(p) {
-            let (dv, ov) = (distance.data[v] as i64, opening.data[v] as i64);
-            d = d.max(dv);
-            dc = dc.max(ov - dv);
-        }
-        let birth = dates.birth[e] as i64;
-        let bound = match constraint {
-            EdgeConstraint::Thesis => dc + birth - d,
-            EdgeConstraint::ReleasedCode => dc + birth,
-        };
-        *kept = lifespan as i64 > bound;
     });
     // W must be a complex: keep the kept edges' vertices too.
-    for e in 0..x.cells.len() {
-        if keep[e] && x.dim(e) == 1 {
-            for (v, _, _) in x.facets(e) {
-                keep[v] = true;
-            }
+    let edges: Vec<usize> = keep.par_iter().enumerate().filter(|&(_, &k)| k).map(|(e, _)| e).collect();
+    for e in edges {
+        for (v, _, _) in x.facets(e) {
+            keep[v] = true;
         }
     }
     keep
