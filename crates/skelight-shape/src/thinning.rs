@@ -26,16 +26,28 @@ pub const NEVER: Date = Date::MAX;
 /// The most layers a dated collapse may take: the others are dates.
 pub const MAX_DATED_LAYERS: u32 = NEVER as u32 - 1;
 
-/// Birth and death dates of every face under an unconstrained collapse (Def. 6.1–6.2).
+/// Death dates of every face under an unconstrained collapse (Def. 6.1), from which the
+/// birth dates follow (Def. 6.2, [`Dates::birth`]).
 pub struct Dates {
-    pub birth: Vec<Date>,
     pub death: Vec<Date>,
 }
 
 impl Dates {
+    /// Def. 6.2 for face `i` of `x`, the complex the dates were taken on: a face is born when
+    /// its last coface dies, as it then becomes maximal (or, if it was that coface's free
+    /// facet, leaves with it). So 0 for a face maximal from the start, [`NEVER`] for one
+    /// outside `x` or with a coface never removed. Deriving births this way spares the
+    /// collapse a second date array and a write per face.
+    pub fn birth(&self, x: &Complex, i: usize) -> Date {
+        if !x.cells[i] {
+            return NEVER;
+        }
+        x.cofaces(i).filter(|c| x.cells[c.0]).map(|c| self.death[c.0]).max().unwrap_or(0)
+    }
+
     /// Def. 6.3: death − birth, or `None` (infinite) for faces never removed.
-    pub fn lifespan(&self, i: usize) -> Option<u32> {
-        (self.death[i] != NEVER).then(|| u32::from(self.death[i] - self.birth[i]))
+    pub fn lifespan(&self, x: &Complex, i: usize) -> Option<u32> {
+        (self.death[i] != NEVER).then(|| u32::from(self.death[i] - self.birth(x, i)))
     }
 }
 
@@ -164,7 +176,7 @@ const PARALLEL_PAIRS: usize = 1 << 14;
 struct Removal<'a> {
     offset: usize,
     state: &'a mut [u8],
-    dates: Option<(&'a mut [Date], &'a mut [Date])>,
+    death: Option<&'a mut [Date]>,
 }
 
 impl Removal<'_> {
@@ -177,28 +189,17 @@ impl Removal<'_> {
         debug_assert!(state[f] & state[g] & ALIVE != 0, "a pair of the layer was removed twice");
         state[f] &= !ALIVE;
         state[g] &= !ALIVE;
-        if let Some((_, death)) = self.dates.as_mut() {
+        if let Some(death) = self.death.as_mut() {
             death[f] = layer;
             death[g] = layer;
         }
         for face in [f, g] {
             for &offset in steps.facets(state[face]) {
-                // t lost a coface: it may be maximal now (born), or free.
+                // t lost a coface: it may be free now.
                 let t = face.wrapping_add_signed(offset);
                 state[t] -= 1;
-                let s = state[t];
-                if s & ALIVE == 0 {
-                    continue;
-                }
-                match s & COUNT {
-                    // Counts only fall, so this happens once per face.
-                    0 => {
-                        if let Some((birth, _)) = self.dates.as_mut() {
-                            birth[t] = layer;
-                        }
-                    }
-                    1 => queue(t + self.offset),
-                    _ => {}
+                if state[t] & (ALIVE | COUNT) == ALIVE | 1 {
+                    queue(t + self.offset);
                 }
             }
         }
@@ -221,7 +222,6 @@ fn collapse_in_slabs(
     let strides = x.strides();
     let mut state = initial_state(x, keep, &steps);
     if let Some(d) = dates.as_deref_mut() {
-        d.birth = state.par_iter().map(|&s| if s & (ALIVE | COUNT) == ALIVE { 0 } else { NEVER }).collect();
         d.death = vec![NEVER; n];
     }
     let k = slabs.count();
@@ -272,19 +272,19 @@ fn collapse_in_slabs(
         // coface count drops to one, which happens once.
         if found >= PARALLEL_PAIRS {
             let states = slabs.split(&mut state);
-            let mut date_parts: Vec<Option<(&mut [Date], &mut [Date])>> = match dates.as_deref_mut() {
-                Some(d) => slabs.split(&mut d.birth).into_iter().zip(slabs.split(&mut d.death)).map(Some).collect(),
+            let mut death_parts: Vec<Option<&mut [Date]>> = match dates.as_deref_mut() {
+                Some(d) => slabs.split(&mut d.death).into_iter().map(Some).collect(),
                 None => (0..k).map(|_| None).collect(),
             };
             states
                 .into_par_iter()
-                .zip(date_parts.par_drain(..))
+                .zip(death_parts.par_drain(..))
                 .zip(candidates.par_iter_mut())
                 .zip(pairs.par_iter_mut())
                 .zip(border.par_iter_mut())
                 .enumerate()
-                .for_each(|(s, ((((state, dates), next), pairs), border))| {
-                    let mut view = Removal { offset: slabs.bounds[s], state, dates };
+                .for_each(|(s, ((((state, death), next), pairs), border))| {
+                    let mut view = Removal { offset: slabs.bounds[s], state, death };
                     for (f, g) in pairs.drain(..) {
                         if slabs.inside(s, g) {
                             view.remove(&steps, (f, g), date, |t| next.push(t));
@@ -299,24 +299,12 @@ fn collapse_in_slabs(
                 b.append(p);
             }
         }
-        let mut whole = Removal {
-            offset: 0,
-            state: &mut state,
-            dates: dates.as_deref_mut().map(|d| (&mut d.birth[..], &mut d.death[..])),
-        };
+        let mut whole = Removal { offset: 0, state: &mut state, death: dates.as_deref_mut().map(|d| &mut d.death[..]) };
         for pair in border.iter_mut().flat_map(|b| b.drain(..)) {
             whole.remove(&steps, pair, date, |t| candidates[slabs.of(t)].push(t));
         }
     }
     x.cells.par_iter_mut().zip(&state).for_each(|(c, &s)| *c = s & ALIVE != 0);
-    if let Some(d) = dates {
-        // A face removed before it became a facet is born when it dies (lifespan 0).
-        d.birth.par_iter_mut().zip(&d.death).for_each(|(birth, &death)| {
-            if death != NEVER && *birth == NEVER {
-                *birth = death;
-            }
-        });
-    }
     layer
 }
 
@@ -428,7 +416,7 @@ pub fn curvilinear_skeleton(
 /// The dates of the unconstrained collapse of `x`, if it ends within `max_layers` layers
 /// (at most [`MAX_DATED_LAYERS`]).
 fn dated_collapse(x: &Complex, max_layers: u32) -> Result<Dates, TooManyLayers> {
-    let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
+    let mut dates = Dates { death: Vec::new() };
     let mut y = x.clone();
     let max_layers = max_layers.min(MAX_DATED_LAYERS);
     if par_dir_collapse(&mut y, None, max_layers, Some(&mut dates)) == max_layers
@@ -504,6 +492,14 @@ pub fn edge_constraint(
             // Where y and z are even the row's edges lie along x (odd x); elsewhere they
             // cross it (even x).
             let first_x = usize::from(y & 1 == 0 && z & 1 == 0);
+            // The edges' cofaces lie one step away along the two axes the edges do not span.
+            let coface_steps = if y & 1 == 1 {
+                [1, sz]
+            } else if z & 1 == 1 {
+                [1, sy]
+            } else {
+                [sy, sz]
+            };
             let mut rows = [0; 4];
             let mut n_rows = 0;
             for vz in voxel_span(z, d) {
@@ -518,7 +514,19 @@ pub fn edge_constraint(
                 if !x.cells[e] {
                     continue;
                 }
-                let Some(lifespan) = dates.lifespan(e) else { continue };
+                let death = dates.death[e];
+                if death == NEVER {
+                    continue; // an infinite lifespan (see `curvilinear_skeleton`)
+                }
+                // Def. 6.2 as in `Dates::birth`, with the row's fixed coface offsets.
+                let birth = coface_steps
+                    .iter()
+                    .flat_map(|&o| [e - o, e + o])
+                    .filter(|&c| x.cells[c])
+                    .map(|c| dates.death[c])
+                    .max()
+                    .unwrap_or(0);
+                let (birth, lifespan) = (i64::from(birth), i64::from(death - birth));
                 // D and DC of an edge: their largest values over the voxels around it.
                 let (mut dmax, mut dc) = (0i64, 0i64);
                 for &row in &rows[..n_rows] {
@@ -528,12 +536,11 @@ pub fn edge_constraint(
                         dc = dc.max(ov - dv);
                     }
                 }
-                let birth = dates.birth[e] as i64;
                 let bound = match constraint {
                     EdgeConstraint::Thesis => dc + birth - dmax,
                     EdgeConstraint::ReleasedCode => dc + birth,
                 };
-                plane[local] = lifespan as i64 > bound;
+                plane[local] = lifespan > bound;
             }
         }
     });
@@ -677,10 +684,10 @@ mod tests {
             for keep in [None, Some(&keep[..])] {
                 let run = |count: usize| {
                     let mut y = x.clone();
-                    let mut d = Dates { birth: Vec::new(), death: Vec::new() };
+                    let mut d = Dates { death: Vec::new() };
                     let layers =
                         collapse_in_slabs(&mut y, keep, u32::MAX, Some(&mut d), None, &Slabs::with_count(&x, count));
-                    (layers, y.cells, d.birth, d.death)
+                    (layers, y.cells, d.death)
                 };
                 let one = run(1);
                 assert!(one.0 > 3, "the object should take several layers");
@@ -745,7 +752,7 @@ mod tests {
                 .map(|i| x.cells[i] && i % 5 == 0 && x.coords(i).iter().all(|c| c % 2 == 0))
                 .collect();
             for keep in [vec![false; x.cells.len()], kept] {
-                let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
+                let mut dates = Dates { death: Vec::new() };
                 let mut fast = x.clone();
                 let layers = collapse_from(&mut fast, Some(&keep), u32::MAX, Some(&mut dates), None);
                 let mut slow = x.clone();
@@ -770,7 +777,8 @@ mod tests {
                 }
                 assert_eq!(layers, u32::from(layer), "seed {seed}");
                 assert!(layer > 2, "seed {seed}: the object should take several layers");
-                assert!(fast == slow && dates.death == death && dates.birth == birth, "seed {seed}: dates differ");
+                let derived: Vec<Date> = (0..x.cells.len()).map(|i| dates.birth(&x, i)).collect();
+                assert!(fast == slow && dates.death == death && derived == birth, "seed {seed}: dates differ");
             }
         }
     }
@@ -779,7 +787,7 @@ mod tests {
     fn dates_follow_their_definitions() {
         let set = random_object([7, 7, 7], 3, 0.8);
         let x = Complex::from_voxels(&set);
-        let mut dates = Dates { birth: Vec::new(), death: Vec::new() };
+        let mut dates = Dates { death: Vec::new() };
         par_dir_collapse(&mut x.clone(), None, u32::MAX, Some(&mut dates));
         // Def. 6.1 and 6.2 checked against collapses of λ layers.
         for layers in 0..6 {
@@ -791,7 +799,7 @@ mod tests {
                 }
                 assert_eq!(!y.cells[i], u32::from(dates.death[i]) <= layers, "death of face {i} after {layers} layers");
                 let born = !y.cells[i] || y.coface_count(i) == 0;
-                assert_eq!(born, u32::from(dates.birth[i]) <= layers, "birth of face {i} after {layers} layers");
+                assert_eq!(born, u32::from(dates.birth(&x, i)) <= layers, "birth of face {i} after {layers} layers");
             }
         }
     }
@@ -808,7 +816,7 @@ mod tests {
         assert!(matches!(dated_collapse(&x, layers - 1), Err(TooManyLayers(l)) if l == layers - 1));
         let full = dated_collapse(&x, layers).expect("enough layers");
         let uncapped = dated_collapse(&x, MAX_DATED_LAYERS).expect("enough layers");
-        assert!(full.death == uncapped.death && full.birth == uncapped.birth);
+        assert!(full.death == uncapped.death);
         assert_eq!(full.death.iter().filter(|&&d| d != NEVER).max(), Some(&(layers as Date)));
     }
 
