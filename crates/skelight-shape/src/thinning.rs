@@ -11,7 +11,7 @@
 
 use crate::complex::{voxel_span, Complex};
 use crate::distance::l1;
-use crate::grid::Grid;
+use crate::grid::{par_positions, Grid};
 use crate::opening::l1_opening;
 use rayon::prelude::*;
 
@@ -427,13 +427,58 @@ fn dated_collapse(x: &Complex, max_layers: u32) -> Result<Dates, TooManyLayers> 
     Ok(dates)
 }
 
-/// Alg. 2 is deterministic, so the collapse keeping `keep` removes exactly the pairs of the
-/// unconstrained one until a face of `keep` is about to die: moves `x` (the complex the
-/// dates were taken on) to the unconstrained state before that layer, skipping the work
-/// the two collapses share.
+/// Alg. 2 is deterministic and local, so in each connected part of the complex the collapse
+/// keeping `keep` removes exactly the pairs of the unconstrained one until a face of `keep`
+/// in that part is about to die: moves `x` (the complex the dates were taken on) to the
+/// unconstrained state before that layer, part by part, skipping the work the two collapses
+/// share. (Parts never interact: a pair's removal reads and changes only faces joined to it.)
+///
+/// Parts are found by walking them from their kept faces in order of death, while the walks
+/// stay within a budget (1/256 of the faces, a few milliseconds); every face not walked
+/// skips to the earliest death among the kept faces not walked yet, no later than its own
+/// part's. On the door the earliest kept faces
+/// lie in small closed pockets (dying at layers 6–15) while the room's die at the last layer,
+/// so the room skips to its end instead of to layer 6.
 fn skip_shared_layers(x: &mut Complex, dates: &Dates, keep: &[bool]) {
-    let first = keep.par_iter().zip(&dates.death).filter(|(&k, _)| k).map(|(_, &d)| d).min().unwrap_or(NEVER);
-    x.cells.par_iter_mut().zip(&dates.death).for_each(|(c, &death)| *c &= death >= first);
+    let n = x.cells.len();
+    let mut kept: Vec<(Date, usize)> = par_positions(n, |i| keep[i]).into_iter().map(|i| (dates.death[i], i)).collect();
+    kept.sort_unstable();
+    let budget = (n / 256).max(1 << 12);
+    let [_, sy, sz] = x.strides();
+    let mut seen = vec![false; n];
+    // Faces walked, each with the layer its part skips to.
+    let mut walked: Vec<(usize, Date)> = Vec::new();
+    let mut rest = NEVER;
+    'parts: for &(first, w) in &kept {
+        if seen[w] {
+            continue; // in a part walked from an earlier kept face
+        }
+        if walked.len() >= budget {
+            rest = first;
+            break;
+        }
+        // Facets and cofaces are the six axis neighbours in the doubled grid; padding cells
+        // are never in the complex.
+        seen[w] = true;
+        let mut stack = vec![w];
+        while let Some(i) = stack.pop() {
+            walked.push((i, first));
+            if walked.len() >= budget {
+                rest = first; // this part and every one not walked skip to `first`
+                break 'parts;
+            }
+            for j in [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz] {
+                if x.cells[j] && !seen[j] {
+                    seen[j] = true;
+                    stack.push(j);
+                }
+            }
+        }
+    }
+    x.cells.par_iter_mut().zip(&dates.death).for_each(|(c, &death)| *c &= death >= rest);
+    for (i, first) in walked {
+        x.cells[i] = dates.death[i] >= first;
+    }
 }
 
 /// The complex of `set`, the dates of its unconstrained thinning, and Alg. 3's constraint
@@ -545,8 +590,7 @@ pub fn edge_constraint(
         }
     });
     // W must be a complex: keep the kept edges' vertices too.
-    let edges: Vec<usize> = keep.par_iter().enumerate().filter(|&(_, &k)| k).map(|(e, _)| e).collect();
-    for e in edges {
+    for e in par_positions(keep.len(), |e| keep[e]) {
         for (v, _, _) in x.facets(e) {
             keep[v] = true;
         }
@@ -560,7 +604,7 @@ pub fn edge_constraint(
 pub fn pierce_surfaces(x: &mut Complex) -> Vec<usize> {
     // After thinning few squares are left in a large array: find them in parallel, then
     // walk their patches (in index order, so the first square of each patch is pierced).
-    let squares: Vec<usize> = (0..x.cells.len()).into_par_iter().filter(|&i| x.cells[i] && x.dim(i) == 2).collect();
+    let squares = par_positions(x.cells.len(), |i| x.cells[i] && x.dim(i) == 2);
     let mut seen = std::collections::HashSet::with_capacity(squares.len());
     let mut queue = std::collections::VecDeque::new();
     let mut pierced = Vec::new();
@@ -930,6 +974,35 @@ mod tests {
             assert_eq!(skipped, whole);
         }
         assert!(skipped_any, "no shape had a layer to skip");
+    }
+
+    /// A thin closed pocket whose kept faces die early, beside a wide hall whose kept faces
+    /// die late: the hall's part skips to its own first kept death, not the pocket's, and
+    /// the skeleton is still the one thinned from the whole complex.
+    #[test]
+    fn each_part_skips_to_its_own_first_kept_death() {
+        let set = set_from([40, 12, 16], 1.0, |x, y, z| {
+            let hall = (1..39).contains(&x) && (1..10).contains(&y) && (1..10).contains(&z);
+            let pocket = (1..39).contains(&x) && (1..4).contains(&y) && (12..15).contains(&z);
+            hall || pocket
+        });
+        let (whole, dates, keep) = constraint_set(&set, EdgeConstraint::Thesis, &[]).unwrap();
+        let in_pocket = |i: usize| whole.coords(i)[2] >= 22;
+        let first = |pocket: bool| {
+            (0..keep.len()).filter(|&i| keep[i] && in_pocket(i) == pocket).map(|i| dates.death[i]).min().unwrap()
+        };
+        let (pocket_first, hall_first) = (first(true), first(false));
+        assert!(pocket_first < hall_first, "the pocket's kept faces should die first: {pocket_first} vs {hall_first}");
+        let mut skipped = whole.clone();
+        skip_shared_layers(&mut skipped, &dates, &keep);
+        for i in (0..keep.len()).filter(|&i| whole.cells[i]) {
+            let part_first = if in_pocket(i) { pocket_first } else { hall_first };
+            assert_eq!(skipped.cells[i], dates.death[i] >= part_first, "face {i}");
+        }
+        let mut thinned = whole.clone();
+        thin_keeping(&mut thinned, &keep);
+        thin_keeping(&mut skipped, &keep);
+        assert_eq!(skipped, thinned);
     }
 
     /// An anchor in a corner of a corridor's end gets a branch of its own: the skeleton
