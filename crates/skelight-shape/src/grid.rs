@@ -147,6 +147,28 @@ pub(crate) fn par_positions(len: usize, pred: impl Fn(usize) -> bool + Sync) -> 
         .collect()
 }
 
+/// A set of positions below a bound, one bit each: walks over a few faces of a large
+/// complex mark what they have seen here (the zeroed pages cost nothing until touched),
+/// faster than hashing and eight times smaller than a `Vec<bool>`.
+pub(crate) struct BitSet {
+    words: Vec<u64>,
+}
+
+impl BitSet {
+    pub(crate) fn new(len: usize) -> BitSet {
+        BitSet { words: vec![0; len.div_ceil(64)] }
+    }
+
+    /// Adds `i`; whether it was not there yet.
+    #[inline]
+    pub(crate) fn insert(&mut self, i: usize) -> bool {
+        let (word, bit) = (&mut self.words[i / 64], 1u64 << (i % 64));
+        let new = *word & bit == 0;
+        *word |= bit;
+        new
+    }
+}
+
 /// A grid's layout with one cell of padding on every side: every voxel then has its 26
 /// neighbours in the array at fixed offsets, so inner loops need no bounds checks and no
 /// division to find coordinates.

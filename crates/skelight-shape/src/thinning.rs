@@ -11,7 +11,7 @@
 
 use crate::complex::{voxel_span, Complex};
 use crate::distance::l1;
-use crate::grid::{par_positions, Grid};
+use crate::grid::{par_positions, BitSet, Grid};
 use crate::opening::l1_opening;
 use rayon::prelude::*;
 
@@ -434,7 +434,7 @@ fn dated_collapse(x: &Complex, max_layers: u32) -> Result<Dates, TooManyLayers> 
 /// share. (Parts never interact: a pair's removal reads and changes only faces joined to it.)
 ///
 /// Parts are found by walking them from their kept faces in order of death, while the walks
-/// stay within a budget (1/256 of the faces, a few milliseconds); every face not walked
+/// stay within a budget (1/1024 of the faces, a few milliseconds); every face not walked
 /// skips to the earliest death among the kept faces not walked yet, no later than its own
 /// part's. On the door the earliest kept faces
 /// lie in small closed pockets (dying at layers 6–15) while the room's die at the last layer,
@@ -443,14 +443,14 @@ fn skip_shared_layers(x: &mut Complex, dates: &Dates, keep: &[bool]) {
     let n = x.cells.len();
     let mut kept: Vec<(Date, usize)> = par_positions(n, |i| keep[i]).into_iter().map(|i| (dates.death[i], i)).collect();
     kept.sort_unstable();
-    let budget = (n / 256).max(1 << 12);
+    let budget = (n / 1024).max(1 << 12);
     let [_, sy, sz] = x.strides();
-    let mut seen = vec![false; n];
+    let mut seen = BitSet::new(n);
     // Faces walked, each with the layer its part skips to.
     let mut walked: Vec<(usize, Date)> = Vec::new();
     let mut rest = NEVER;
     'parts: for &(first, w) in &kept {
-        if seen[w] {
+        if !seen.insert(w) {
             continue; // in a part walked from an earlier kept face
         }
         if walked.len() >= budget {
@@ -459,7 +459,6 @@ fn skip_shared_layers(x: &mut Complex, dates: &Dates, keep: &[bool]) {
         }
         // Facets and cofaces are the six axis neighbours in the doubled grid; padding cells
         // are never in the complex.
-        seen[w] = true;
         let mut stack = vec![w];
         while let Some(i) = stack.pop() {
             walked.push((i, first));
@@ -468,8 +467,7 @@ fn skip_shared_layers(x: &mut Complex, dates: &Dates, keep: &[bool]) {
                 break 'parts;
             }
             for j in [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz] {
-                if x.cells[j] && !seen[j] {
-                    seen[j] = true;
+                if x.cells[j] && seen.insert(j) {
                     stack.push(j);
                 }
             }
@@ -605,7 +603,7 @@ pub fn pierce_surfaces(x: &mut Complex) -> Vec<usize> {
     // After thinning few squares are left in a large array: find them in parallel, then
     // walk their patches (in index order, so the first square of each patch is pierced).
     let squares = par_positions(x.cells.len(), |i| x.cells[i] && x.dim(i) == 2);
-    let mut seen = std::collections::HashSet::with_capacity(squares.len());
+    let mut seen = BitSet::new(x.cells.len());
     let mut queue = std::collections::VecDeque::new();
     let mut pierced = Vec::new();
     for start in squares {
