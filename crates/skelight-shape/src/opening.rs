@@ -9,7 +9,7 @@
 use std::collections::VecDeque;
 
 use crate::distance::lines;
-use crate::grid::{Grid, Padded};
+use crate::grid::{par_positions, Grid, Padded};
 
 /// The opening map and an opening forest.
 pub struct Opening {
@@ -102,43 +102,50 @@ fn dilate_line(
 pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
     let spec = l1.spec;
     let max_radius = l1.data.iter().copied().max().unwrap_or(0) as usize;
+    // A radius is at most half the grid's shortest side, far below 2¹⁶ for any grid that
+    // fits in memory: 16-bit maps halve the walks' memory traffic.
     assert!(
-        max_radius <= spec.dims.iter().sum::<usize>(),
+        max_radius <= spec.dims.iter().sum::<usize>() && max_radius < u16::MAX as usize,
         "l1_opening wants an L1 distance map with a finite border (from `l1(set, true)`)"
     );
     // Radius 0 around the grid: walks stop there as they do outside the set.
     let layout = Padded::new(spec.dims);
-    let d = layout.pad(&l1.data, 0, |r| r);
+    let d: Vec<u16> = layout.pad(&l1.data, 0, |r| r as u16);
     let [_, sy, sz] = layout.strides();
+    // A ball whose centre has a 6-neighbour with a larger radius lies inside that one's
+    // ball, so only the other centres (ridges of the map) need a walk.
+    let is_ridge = |i: usize| d[i] > 0 && [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz].iter().all(|&j| d[j] <= d[i]);
+    let ridges = par_positions(d.len(), is_ridge);
     // Centres by radius (a counting sort: radii are small), largest first. first[r]: where
-    // radius r starts among the centres (voxels outside the set, radius 0, are none).
+    // radius r starts among the centres.
     let mut first = vec![0u32; max_radius + 2];
-    d.iter().filter(|&&r| r > 0).for_each(|&r| first[r as usize + 1] += 1);
+    ridges.iter().for_each(|&i| first[d[i] as usize + 1] += 1);
     for r in 1..first.len() {
         first[r] += first[r - 1];
     }
-    let mut centres = vec![0u32; first[max_radius + 1] as usize];
+    let mut centres = vec![0u32; ridges.len()];
     let mut fill = first.clone();
-    for (i, &r) in d.iter().enumerate().filter(|&(_, &r)| r > 0) {
-        centres[fill[r as usize] as usize] = i as u32;
-        fill[r as usize] += 1;
+    for i in ridges {
+        let r = d[i] as usize;
+        centres[fill[r] as usize] = i as u32;
+        fill[r] += 1;
     }
-    let mut opening = vec![0u32; d.len()];
+    let mut opening = vec![0u16; d.len()];
     // Largest budget left (+1) with which any walk so far reached a voxel; 0 = never.
-    let mut reached = vec![0u32; d.len()];
-    let mut frontier = Vec::new();
-    let mut next = Vec::new();
-    let mut enter = |j: usize, budget: u32, r: u32, list: &mut Vec<usize>| {
+    let mut reached = vec![0u16; d.len()];
+    let mut frontier: Vec<u32> = Vec::new();
+    let mut next: Vec<u32> = Vec::new();
+    let mut enter = |j: usize, budget: u16, r: u16, list: &mut Vec<u32>| {
         if reached[j] < budget {
             reached[j] = budget;
             if opening[j] == 0 {
                 opening[j] = r;
             }
-            list.push(j);
+            list.push(j as u32);
         }
     };
     for r in (1..=max_radius).rev() {
-        let r = r as u32;
+        let r = r as u16;
         for &i in &centres[first[r as usize] as usize..first[r as usize + 1] as usize] {
             enter(i as usize, r, r, &mut frontier);
         }
@@ -147,6 +154,7 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
         while budget > 1 && !frontier.is_empty() {
             budget -= 1;
             for &i in &frontier {
+                let i = i as usize;
                 for j in [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz] {
                     if d[j] > 0 {
                         enter(j, budget, r, &mut next);
@@ -158,7 +166,7 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
         }
         frontier.clear();
     }
-    Grid { spec, data: layout.unpad(&opening) }
+    Grid { spec, data: layout.unpad(&opening).into_iter().map(u32::from).collect() }
 }
 
 /// Decenterness DC₁ = π₁ − D₁ (Def. 6.4): 0 on the centres of the largest balls, growing
