@@ -90,8 +90,9 @@ fn collapse_from(
     dates: Option<&mut Dates>,
     candidates: Option<Vec<usize>>,
 ) -> u32 {
-    let slabs = Slabs::new(x, 2 * rayon::current_num_threads());
-    collapse_in_slabs(x, keep, layers, dates, candidates, &slabs)
+    let (layers, state) = collapse_in_slabs(x, keep, layers, dates, candidates, &Slabs::new(x));
+    x.cells.par_iter_mut().zip(&state).for_each(|(c, &s)| *c = s & ALIVE != 0);
+    layers
 }
 
 /// The face array cut into contiguous runs of whole planes, one per task. A pair whose
@@ -106,8 +107,9 @@ struct Slabs {
 }
 
 impl Slabs {
-    /// Up to `wanted` slabs, each at least eight margins thick (or a single slab).
-    fn new(x: &Complex, wanted: usize) -> Slabs {
+    /// Two slabs per thread, each at least eight margins thick (or a single slab).
+    fn new(x: &Complex) -> Slabs {
+        let wanted = 2 * rayon::current_num_threads();
         let margin = 2 * x.strides()[2];
         Slabs::with_count(x, wanted.min(x.cells.len() / (8 * margin)).max(1))
     }
@@ -207,15 +209,16 @@ impl Removal<'_> {
 }
 
 /// [`collapse_from`] over the given slabs: each layer finds its pairs slab by slab, then
-/// removes those inside the slabs in parallel and those near slab edges after.
+/// removes those inside the slabs in parallel and those near slab edges after. Leaves `x`
+/// as it is; returns the number of layers and the final state bytes.
 fn collapse_in_slabs(
-    x: &mut Complex,
+    x: &Complex,
     keep: Option<&[bool]>,
     layers: u32,
     mut dates: Option<&mut Dates>,
     candidates: Option<Vec<usize>>,
     slabs: &Slabs,
-) -> u32 {
+) -> (u32, Vec<u8>) {
     let n = x.cells.len();
     let layers = if dates.is_some() { layers.min(MAX_DATED_LAYERS) } else { layers };
     let steps = Neighbours::new(x);
@@ -304,8 +307,7 @@ fn collapse_in_slabs(
             whole.remove(&steps, pair, date, |t| candidates[slabs.of(t)].push(t));
         }
     }
-    x.cells.par_iter_mut().zip(&state).for_each(|(c, &s)| *c = s & ALIVE != 0);
-    layer
+    (layer, state)
 }
 
 /// Bits of the per-face state byte of [`collapse_from`], so that each face costs one memory
@@ -417,12 +419,16 @@ pub fn curvilinear_skeleton(
 /// (at most [`MAX_DATED_LAYERS`]).
 fn dated_collapse(x: &Complex, max_layers: u32) -> Result<Dates, TooManyLayers> {
     let mut dates = Dates { death: Vec::new() };
-    let mut y = x.clone();
     let max_layers = max_layers.min(MAX_DATED_LAYERS);
-    if par_dir_collapse(&mut y, None, max_layers, Some(&mut dates)) == max_layers
-        && par_dir_collapse(&mut y, None, 1, None) > 0
-    {
-        return Err(TooManyLayers(max_layers));
+    // Only the dates are wanted: the collapsed complex itself is not built.
+    let (layers, _) = collapse_in_slabs(x, None, max_layers, Some(&mut dates), None, &Slabs::new(x));
+    if layers == max_layers {
+        // Cut short, or done? The faces left are those without a death date.
+        let mut y = x.clone();
+        y.cells.par_iter_mut().zip(&dates.death).for_each(|(c, &death)| *c &= death == NEVER);
+        if par_dir_collapse(&mut y, None, 1, None) > 0 {
+            return Err(TooManyLayers(max_layers));
+        }
     }
     Ok(dates)
 }
@@ -725,11 +731,10 @@ mod tests {
                 .collect();
             for keep in [None, Some(&keep[..])] {
                 let run = |count: usize| {
-                    let mut y = x.clone();
                     let mut d = Dates { death: Vec::new() };
-                    let layers =
-                        collapse_in_slabs(&mut y, keep, u32::MAX, Some(&mut d), None, &Slabs::with_count(&x, count));
-                    (layers, y.cells, d.death)
+                    let (layers, state) =
+                        collapse_in_slabs(&x, keep, u32::MAX, Some(&mut d), None, &Slabs::with_count(&x, count));
+                    (layers, state, d.death)
                 };
                 let one = run(1);
                 assert!(one.0 > 3, "the object should take several layers");
