@@ -851,6 +851,23 @@ mod tests {
         }
     }
 
+    /// Voxels die at their L1 distance to the outside: a voxel is free in the layer after
+    /// its first 6-neighbour goes (the square between them is then free), and only then.
+    #[test]
+    fn voxels_die_at_their_l1_distance() {
+        for seed in 0..6 {
+            let set = random_object([14, 12, 10], 40 + seed, 0.95);
+            let x = Complex::from_voxels(&set);
+            let dates = dated_collapse(&x, MAX_DATED_LAYERS).unwrap();
+            let distance = l1(&set, true);
+            assert!(distance.data.iter().any(|&d| d >= 3), "seed {seed}: too thin to tell");
+            for v in (0..set.data.len()).filter(|&v| set.data[v]) {
+                let face = x.index(set.spec.coords(v).map(|c| 2 * c + 1));
+                assert_eq!(u32::from(dates.death[face]), distance.data[v], "seed {seed}, voxel {v}");
+            }
+        }
+    }
+
     /// A collapse longer than the dates can count is refused, not clipped: a corridor whose
     /// collapse takes L layers fails below L and gives the full dates at L.
     #[test]
