@@ -193,6 +193,11 @@ impl Padded {
         [1, self.row, self.plane]
     }
 
+    /// Index of voxel (x, y, z) (grid coordinates).
+    pub(crate) fn index(&self, x: usize, y: usize, z: usize) -> usize {
+        self.row_start(y, z) + x
+    }
+
     /// Index of the first voxel of row (y, z) (grid coordinates).
     fn row_start(&self, y: usize, z: usize) -> usize {
         (z + 1) * self.plane + (y + 1) * self.row + 1

@@ -8,7 +8,7 @@
 
 use std::collections::VecDeque;
 
-use crate::grid::{neighbours6, Grid, GridSpec};
+use crate::grid::{Grid, GridSpec, Padded};
 use crate::skeleton::SkeletonGraph;
 
 /// The node mapping grid of one skeleton graph.
@@ -22,23 +22,31 @@ pub struct NodeMapping {
 impl NodeMapping {
     /// Alg. 5 on the empty space `empty` for the nodes of `graph`.
     pub fn new(graph: &SkeletonGraph, empty: &Grid<bool>) -> NodeMapping {
+        // A breadth-first flood from every node's voxel at once, on padded grids so that
+        // neighbours are fixed offsets (the padding is never empty, so never entered).
         let spec = empty.spec;
-        let mut grid = Grid::new(spec, 0u32);
+        let layout = Padded::new(spec.dims);
+        let [_, sy, sz] = layout.strides();
+        let inside = layout.pad(&empty.data, false, |e| e);
+        let mut label = vec![0u32; layout.len()];
         let mut queue = VecDeque::new();
         for (l, node) in graph.nodes.iter().enumerate() {
-            if grid.data[node.voxel] == 0 {
-                grid.data[node.voxel] = l as u32 + 1;
-                queue.push_back(node.voxel);
+            let [x, y, z] = spec.coords(node.voxel);
+            let i = layout.index(x, y, z);
+            if label[i] == 0 {
+                label[i] = l as u32 + 1;
+                queue.push_back(i);
             }
         }
         while let Some(i) = queue.pop_front() {
-            for j in neighbours6(spec.dims, i) {
-                if empty.data[j] && grid.data[j] == 0 {
-                    grid.data[j] = grid.data[i];
+            for j in [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz] {
+                if inside[j] && label[j] == 0 {
+                    label[j] = label[i];
                     queue.push_back(j);
                 }
             }
         }
+        let grid = Grid { spec, data: layout.unpad(&label) };
         NodeMapping { grid }
     }
 
@@ -136,6 +144,7 @@ pub fn voxel_of(spec: &GridSpec, point: [f64; 3]) -> Option<[usize; 3]> {
 mod tests {
     use super::*;
     use crate::distance::euclidean_squared;
+    use crate::grid::neighbours6;
     use crate::testing::two_rooms_and_a_gap;
     use crate::thinning::{curvilinear_skeleton, EdgeConstraint};
 

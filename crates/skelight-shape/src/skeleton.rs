@@ -5,7 +5,7 @@
 //! [`crate::mapping`].
 
 use crate::complex::Complex;
-use crate::grid::{Grid, GridSpec};
+use crate::grid::{par_positions, Grid, GridSpec};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Node {
@@ -27,13 +27,12 @@ impl SkeletonGraph {
     /// The graph of a curvilinear complex `x` on the grid `spec` of the empty space `empty`,
     /// with `edt` the squared Euclidean distance map of the empty space (in voxels²).
     pub fn from_complex(x: &Complex, spec: &GridSpec, empty: &Grid<bool>, edt: &Grid<u64>) -> SkeletonGraph {
-        let mut node_of = vec![u32::MAX; x.cells.len()];
+        // A skeleton keeps few faces of a large array: find them in parallel, then look nodes
+        // up by face in the sorted list instead of a node array as large as the complex.
+        let n = x.cells.len();
         let mut graph = SkeletonGraph::default();
-        for (i, node) in node_of.iter_mut().enumerate() {
-            if !x.cells[i] || x.dim(i) != 0 {
-                continue;
-            }
-            // The empty voxel around the vertex farthest from the scene.
+        let mut node_at: Vec<(usize, u32)> = Vec::new();
+        for i in par_positions(n, |i| x.cells[i] && x.dim(i) == 0) {
             let best = x.voxels_around(i).filter(|&v| empty.data[v]).map(|v| (edt.data[v], v)).reduce(|a, b| {
                 if b.0 > a.0 {
                     b
@@ -42,18 +41,16 @@ impl SkeletonGraph {
                 }
             });
             let Some((d2, voxel)) = best else { continue };
-            *node = graph.nodes.len() as u32;
+            node_at.push((i, graph.nodes.len() as u32));
             let p = x.coords(i);
             let position = [0, 1, 2].map(|a| spec.origin[a] + (p[a] / 2) as f64 * spec.voxel);
             graph.nodes.push(Node { position, voxel, radius: (d2 as f64).sqrt() * spec.voxel });
         }
-        for e in 0..x.cells.len() {
-            if !x.cells[e] || x.dim(e) != 1 {
-                continue;
-            }
-            let ends: Vec<u32> = x.facets(e).map(|f| node_of[f.0]).collect();
-            if ends.len() == 2 && ends.iter().all(|&n| n != u32::MAX) {
-                graph.edges.push([ends[0], ends[1]]);
+        let node_of = |f: usize| node_at.binary_search_by_key(&f, |&(face, _)| face).ok().map(|k| node_at[k].1);
+        for e in par_positions(n, |i| x.cells[i] && x.dim(i) == 1) {
+            let ends: Vec<Option<u32>> = x.facets(e).map(|f| node_of(f.0)).collect();
+            if let [Some(a), Some(b)] = ends[..] {
+                graph.edges.push([a, b]);
             }
         }
         graph
