@@ -47,6 +47,11 @@ pub fn triangle_overlaps_box(t: &[V; 3], c: V, h: V) -> bool {
     !separated(cross(e[0], e[1]))
 }
 
+/// How far, in voxels, a triangle's bounding box is grown before its voxels are tested:
+/// enough for the rounding of a division, far less than the voxel of margin it once had
+/// (which tested up to 27 voxels for a triangle inside one).
+const BOUNDS_SLACK: f64 = 1e-6;
+
 /// Full voxels of the triangles; degenerate or non-finite triangles are skipped.
 pub fn voxelize(spec: &GridSpec, triangles: &[[V; 3]]) -> Grid<bool> {
     let full: Vec<AtomicBool> = (0..spec.len()).map(|_| AtomicBool::new(false)).collect();
@@ -60,8 +65,10 @@ pub fn voxelize(spec: &GridSpec, triangles: &[[V; 3]]) -> Grid<bool> {
         for i in 0..3 {
             let (mn, mx) =
                 t.iter().map(|p| p[i]).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
-            let a = ((mn - spec.origin[i]) / spec.voxel).floor() - 1.0;
-            let b = ((mx - spec.origin[i]) / spec.voxel).floor() + 1.0;
+            // The voxels whose closed boxes meet [mn, mx] on this axis, with a hair of slack
+            // for rounding: the box test below decides.
+            let a = ((mn - spec.origin[i]) / spec.voxel - BOUNDS_SLACK).floor();
+            let b = ((mx - spec.origin[i]) / spec.voxel + BOUNDS_SLACK).floor();
             if b < 0.0 || a >= spec.dims[i] as f64 {
                 return;
             }
@@ -115,5 +122,42 @@ mod tests {
             }
         }
         assert_eq!(empty_space(&g).data.iter().filter(|e| **e).count(), 8 * 4 * 4 - 16);
+    }
+
+    /// Testing only the voxels of a triangle's bounding box finds every voxel that testing the
+    /// whole grid finds, including triangles whose vertices, edges or faces lie exactly on
+    /// voxel faces (touching counts). The grid's voxel is not a power of two, so those
+    /// coordinates carry rounding.
+    #[test]
+    fn bounding_boxes_miss_no_voxel() {
+        let spec = GridSpec { origin: [-0.3, 0.1, -0.7], voxel: 0.3, dims: [9, 8, 7] };
+        let mut r = crate::testing::Lcg(17);
+        // Points on the lattice of voxel corners and face centres, or anywhere.
+        let mut point = |snap: bool| -> V {
+            [0, 1, 2].map(|a| {
+                let u = r.next() * spec.dims[a] as f64;
+                let u = if snap { (u * 2.0).round() / 2.0 } else { u };
+                spec.origin[a] + u * spec.voxel
+            })
+        };
+        for k in 0..600 {
+            let snap = k % 2 == 0;
+            let mut t = [point(snap), point(snap), point(snap)];
+            if k % 3 == 0 {
+                // A small one, within a voxel or two of its first corner.
+                for v in 1..3 {
+                    t[v] = [0, 1, 2].map(|a| t[0][a] + (t[v][a] - t[0][a]) * 0.1);
+                }
+            }
+            let fast = voxelize(&spec, &[t]);
+            for z in 0..spec.dims[2] {
+                for y in 0..spec.dims[1] {
+                    for x in 0..spec.dims[0] {
+                        let full = triangle_overlaps_box(&t, spec.center(x, y, z), [spec.voxel * 0.5; 3]);
+                        assert_eq!(*fast.get(x, y, z), full, "triangle {k} at voxel {x},{y},{z}");
+                    }
+                }
+            }
+        }
     }
 }
