@@ -169,6 +169,13 @@ impl BitSet {
     }
 }
 
+/// The six axis neighbours of cell `i` of an array with strides `[1, sy, sz]`, in the order
+/// −x, +x, −y, +y, −z, +z (as [`neighbours6`]); the array's padding keeps them inside it.
+#[inline]
+pub(crate) fn axis_neighbours(i: usize, [_, sy, sz]: [usize; 3]) -> [usize; 6] {
+    [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz]
+}
+
 /// A grid's layout with one cell of padding on every side: every voxel then has its 26
 /// neighbours in the array at fixed offsets, so inner loops need no bounds checks and no
 /// division to find coordinates.

@@ -8,7 +8,7 @@
 
 use std::collections::VecDeque;
 
-use crate::grid::{Grid, GridSpec, Padded};
+use crate::grid::{axis_neighbours, Grid, GridSpec, Padded};
 use crate::skeleton::SkeletonGraph;
 
 /// The node mapping grid of one skeleton graph.
@@ -26,7 +26,7 @@ impl NodeMapping {
         // neighbours are fixed offsets (the padding is never empty, so never entered).
         let spec = empty.spec;
         let layout = Padded::new(spec.dims);
-        let [_, sy, sz] = layout.strides();
+        let strides = layout.strides();
         let inside = layout.pad(&empty.data, false, |e| e);
         let mut label = vec![0u32; layout.len()];
         let mut queue = VecDeque::new();
@@ -39,7 +39,7 @@ impl NodeMapping {
             }
         }
         while let Some(i) = queue.pop_front() {
-            for j in [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz] {
+            for j in axis_neighbours(i, strides) {
                 if inside[j] && label[j] == 0 {
                     label[j] = label[i];
                     queue.push_back(j);

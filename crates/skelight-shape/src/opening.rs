@@ -9,7 +9,7 @@
 use std::collections::VecDeque;
 
 use crate::distance::lines;
-use crate::grid::{par_positions, Grid, Padded};
+use crate::grid::{axis_neighbours, par_positions, Grid, Padded};
 
 /// The opening map and an opening forest.
 pub struct Opening {
@@ -102,19 +102,20 @@ fn dilate_line(
 pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
     let spec = l1.spec;
     let max_radius = l1.data.iter().copied().max().unwrap_or(0) as usize;
-    // A radius is at most half the grid's shortest side, far below 2¹⁶ for any grid that
-    // fits in memory: 16-bit maps halve the walks' memory traffic.
     assert!(
-        max_radius <= spec.dims.iter().sum::<usize>() && max_radius < u16::MAX as usize,
+        max_radius <= spec.dims.iter().sum::<usize>(),
         "l1_opening wants an L1 distance map with a finite border (from `l1(set, true)`)"
     );
+    // A radius is at most half the grid's shortest side, far below 2¹⁶ for any grid that
+    // fits in memory: 16-bit maps halve the walks' memory traffic.
+    assert!(max_radius < u16::MAX as usize, "an L1 radius of {max_radius} voxels does not fit in 16 bits");
     // Radius 0 around the grid: walks stop there as they do outside the set.
     let layout = Padded::new(spec.dims);
     let d: Vec<u16> = layout.pad(&l1.data, 0, |r| r as u16);
-    let [_, sy, sz] = layout.strides();
+    let strides = layout.strides();
     // A ball whose centre has a 6-neighbour with a larger radius lies inside that one's
     // ball, so only the other centres (ridges of the map) need a walk.
-    let is_ridge = |i: usize| d[i] > 0 && [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz].iter().all(|&j| d[j] <= d[i]);
+    let is_ridge = |i: usize| d[i] > 0 && axis_neighbours(i, strides).iter().all(|&j| d[j] <= d[i]);
     let ridges = par_positions(d.len(), is_ridge);
     // Centres by radius (a counting sort: radii are small), largest first. first[r]: where
     // radius r starts among the centres.
@@ -155,7 +156,7 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
             budget -= 1;
             for &i in &frontier {
                 let i = i as usize;
-                for j in [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz] {
+                for j in axis_neighbours(i, strides) {
                     if d[j] > 0 {
                         enter(j, budget, r, &mut next);
                     }

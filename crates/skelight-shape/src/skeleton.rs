@@ -33,6 +33,7 @@ impl SkeletonGraph {
         let mut graph = SkeletonGraph::default();
         let mut node_at: Vec<(usize, u32)> = Vec::new();
         for i in par_positions(n, |i| x.cells[i] && x.dim(i) == 0) {
+            // The empty voxel around the vertex farthest from the scene.
             let best = x.voxels_around(i).filter(|&v| empty.data[v]).map(|v| (edt.data[v], v)).reduce(|a, b| {
                 if b.0 > a.0 {
                     b

@@ -11,7 +11,7 @@
 
 use crate::complex::{voxel_span, Complex};
 use crate::distance::l1;
-use crate::grid::{par_positions, BitSet, Grid};
+use crate::grid::{axis_neighbours, par_positions, BitSet, Grid};
 use crate::opening::l1_opening;
 use rayon::prelude::*;
 
@@ -42,12 +42,13 @@ impl Dates {
         if !x.cells[i] {
             return NEVER;
         }
-        x.cofaces(i).filter(|c| x.cells[c.0]).map(|c| self.death[c.0]).max().unwrap_or(0)
+        self.last_death(x, x.cofaces(i).map(|c| c.0))
     }
 
-    /// Def. 6.3: death − birth, or `None` (infinite) for faces never removed.
-    pub fn lifespan(&self, x: &Complex, i: usize) -> Option<u32> {
-        (self.death[i] != NEVER).then(|| u32::from(self.death[i] - self.birth(x, i)))
+    /// The latest death among the faces of `x` in `cofaces` (cells around a face, in the
+    /// complex or not), 0 if none is in it: the birth of a face of `x` with those cofaces.
+    fn last_death(&self, x: &Complex, cofaces: impl IntoIterator<Item = usize>) -> Date {
+        cofaces.into_iter().filter(|&c| x.cells[c]).map(|c| self.death[c]).max().unwrap_or(0)
     }
 }
 
@@ -442,15 +443,14 @@ fn dated_collapse(x: &Complex, max_layers: u32) -> Result<Dates, TooManyLayers> 
 /// Parts are found by walking them from their kept faces in order of death, while the walks
 /// stay within a budget (1/1024 of the faces, a few milliseconds); every face not walked
 /// skips to the earliest death among the kept faces not walked yet, no later than its own
-/// part's. On the door the earliest kept faces
-/// lie in small closed pockets (dying at layers 6–15) while the room's die at the last layer,
-/// so the room skips to its end instead of to layer 6.
+/// part's. On the door the earliest kept faces lie in small closed pockets (dying at layers
+/// 6–15) while the room's die late, so the room skips to layer 58 instead of 6.
 fn skip_shared_layers(x: &mut Complex, dates: &Dates, keep: &[bool]) {
     let n = x.cells.len();
     let mut kept: Vec<(Date, usize)> = par_positions(n, |i| keep[i]).into_iter().map(|i| (dates.death[i], i)).collect();
     kept.sort_unstable();
     let budget = (n / 1024).max(1 << 12);
-    let [_, sy, sz] = x.strides();
+    let strides = x.strides();
     let mut seen = BitSet::new(n);
     // Faces walked, each with the layer its part skips to.
     let mut walked: Vec<(usize, Date)> = Vec::new();
@@ -472,7 +472,7 @@ fn skip_shared_layers(x: &mut Complex, dates: &Dates, keep: &[bool]) {
                 rest = first; // this part and every one not walked skip to `first`
                 break 'parts;
             }
-            for j in [i - 1, i + 1, i - sy, i + sy, i - sz, i + sz] {
+            for j in axis_neighbours(i, strides) {
                 if x.cells[j] && seen.insert(j) {
                     stack.push(j);
                 }
@@ -567,14 +567,8 @@ pub fn edge_constraint(
                 if death == NEVER {
                     continue; // an infinite lifespan (see `curvilinear_skeleton`)
                 }
-                // Def. 6.2 as in `Dates::birth`, with the row's fixed coface offsets.
-                let birth = coface_steps
-                    .iter()
-                    .flat_map(|&o| [e - o, e + o])
-                    .filter(|&c| x.cells[c])
-                    .map(|c| dates.death[c])
-                    .max()
-                    .unwrap_or(0);
+                // Def. 6.2 (`Dates::birth`) with the row's fixed coface offsets, then Def. 6.3.
+                let birth = dates.last_death(x, coface_steps.iter().flat_map(|&o| [e - o, e + o]));
                 let (birth, lifespan) = (i64::from(birth), i64::from(death - birth));
                 // D and DC of an edge: their largest values over the voxels around it.
                 let (mut dmax, mut dc) = (0i64, 0i64);

@@ -52,6 +52,7 @@ impl Mesh {
     pub fn position_derivatives(&self, i: usize) -> (Vec3, Vec3) {
         self.derivatives_at(i, self.triangle(i))
     }
+
     /// [`Mesh::position_derivatives`] of triangle `i` whose vertices the caller has loaded.
     fn derivatives_at(&self, i: usize, [p0, p1, p2]: [Vec3; 3]) -> (Vec3, Vec3) {
         let (e1, e2) = (p1 - p0, p2 - p0);
