@@ -38,28 +38,29 @@ pub struct Complex {
 }
 
 impl Complex {
-    /// The complex of a voxel set: the closure of its 3-faces.
+    /// The complex of a voxel set: the closure of its 3-faces. A face is in it when one of
+    /// the voxels containing it is in the set, so each row of the doubled grid is the union
+    /// of the closures of the (one to four) voxel rows it lies in; planes run in parallel.
     pub fn from_voxels(set: &Grid<bool>) -> Complex {
         let [w, h, d] = set.spec.dims;
         let dims = [2 * w + 1, 2 * h + 1, 2 * d + 1];
         let mut c = Complex { dims, cells: vec![false; (dims[0] + 2) * (dims[1] + 2) * (dims[2] + 2)] };
-        for z in 0..d {
-            for y in 0..h {
-                for x in 0..w {
-                    if !*set.get(x, y, z) {
-                        continue;
-                    }
-                    for dz in 0..3 {
-                        for dy in 0..3 {
-                            for dx in 0..3 {
-                                let i = c.index([2 * x + dx, 2 * y + dy, 2 * z + dz]);
-                                c.cells[i] = true;
+        let [_, sy, sz] = c.strides();
+        c.cells.par_chunks_mut(sz).enumerate().skip(1).take(dims[2]).for_each(|(pz, plane)| {
+            let zs = voxel_span(pz - 1, d);
+            for py in 0..dims[1] {
+                let row = &mut plane[(py + 1) * sy + 1..][..dims[0]];
+                for z in zs.clone() {
+                    for y in voxel_span(py, h) {
+                        for (x, &inside) in set.data[(z * h + y) * w..][..w].iter().enumerate() {
+                            for cell in &mut row[2 * x..2 * x + 3] {
+                                *cell |= inside;
                             }
                         }
                     }
                 }
             }
-        }
+        });
         c
     }
 
@@ -81,22 +82,6 @@ impl Complex {
     pub fn coords(&self, i: usize) -> [usize; 3] {
         let [_, py, pz] = self.strides();
         [(i % py).wrapping_sub(1), (i % pz / py).wrapping_sub(1), (i / pz).wrapping_sub(1)]
-    }
-
-    /// Calls `f(p, i, &mut out[i])` for every face of the doubled grid (coordinates `p`,
-    /// array index `i`; padding skipped), z plane by z plane in parallel. `out` holds one
-    /// value per array cell. Walking coordinates this way costs no division per face.
-    pub fn par_for_each_face<T: Send>(&self, out: &mut [T], f: impl Fn([usize; 3], usize, &mut T) + Sync) {
-        let [_, sy, sz] = self.strides();
-        let dims = self.dims;
-        out.par_chunks_mut(sz).enumerate().skip(1).take(dims[2]).for_each(|(pz, plane)| {
-            for y in 0..dims[1] {
-                for px in 0..dims[0] {
-                    let local = (y + 1) * sy + px + 1;
-                    f([px, y, pz - 1], pz * sz + local, &mut plane[local]);
-                }
-            }
-        });
     }
 
     /// Whether array index `i` is a face of the doubled grid rather than padding.
