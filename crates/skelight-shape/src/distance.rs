@@ -3,25 +3,54 @@
 //! metrics, each in time linear in the number of voxels. Outside the grid counts as outside
 //! the set when `border_is_outside` (the empty space of a scene is closed by its grid).
 
+use rayon::prelude::*;
+
 use crate::grid::{Grid, Padded};
 
 const INF: u32 = u32::MAX / 4;
 
-/// The axis lines of the grid: (start index, stride, length) for every line along `axis`.
-pub(crate) fn lines(dims: [usize; 3], axis: usize) -> Vec<(usize, usize, usize)> {
-    let stride = [1, dims[0], dims[0] * dims[1]];
-    let (a, b) = match axis {
-        0 => (1, 2),
-        1 => (0, 2),
-        _ => (0, 1),
+/// Calls `f` on every line of the grid along `axis` (dimensions `dims`, x fastest), each
+/// as a contiguous slice from its low end, lines in parallel. Lines along y and z are
+/// copied into a buffer and back: walked in place they step by a row or a plane, a cache
+/// miss per voxel on a large grid. Lines along z are grouped by y, so the rows a group
+/// copies are contiguous and stay in the cache from one column to the next.
+pub(crate) fn par_lines<T: Copy + Send + Sync>(
+    data: &mut [T],
+    dims: [usize; 3],
+    axis: usize,
+    f: impl Fn(&mut [T]) + Sync,
+) {
+    let [nx, ny, nz] = dims;
+    if data.is_empty() {
+        return;
+    }
+    // The lines crossing `rows` (voxel rows in order along the axis), one per x.
+    let columns = |rows: &mut [&mut [T]], buffer: &mut Vec<T>| {
+        for x in 0..nx {
+            buffer.clear();
+            buffer.extend(rows.iter().map(|row| row[x]));
+            f(buffer);
+            for (row, &v) in rows.iter_mut().zip(buffer.iter()) {
+                row[x] = v;
+            }
+        }
     };
-    let mut out = Vec::with_capacity(dims[a] * dims[b]);
-    for j in 0..dims[b] {
-        for i in 0..dims[a] {
-            out.push((i * stride[a] + j * stride[b], stride[axis], dims[axis]));
+    match axis {
+        0 => data.par_chunks_mut(nx).for_each(&f),
+        1 => data.par_chunks_mut(nx * ny).for_each(|plane| {
+            let mut rows: Vec<&mut [T]> = plane.chunks_mut(nx).collect();
+            columns(&mut rows, &mut Vec::with_capacity(ny));
+        }),
+        _ => {
+            let mut by_y: Vec<Vec<&mut [T]>> = (0..ny).map(|_| Vec::with_capacity(nz)).collect();
+            for plane in data.chunks_mut(nx * ny) {
+                for (y, row) in plane.chunks_mut(nx).enumerate() {
+                    by_y[y].push(row);
+                }
+            }
+            by_y.into_par_iter().for_each(|mut rows| columns(&mut rows, &mut Vec::with_capacity(nz)));
         }
     }
-    out
 }
 
 fn init(set: &Grid<bool>) -> Vec<u32> {
@@ -31,21 +60,20 @@ fn init(set: &Grid<bool>) -> Vec<u32> {
 /// L1 distance: separable, one forward and one backward pass per axis.
 pub fn l1(set: &Grid<bool>, border_is_outside: bool) -> Grid<u32> {
     let mut d = init(set);
+    let border = if border_is_outside { 0 } else { INF };
     for axis in 0..3 {
-        for (start, stride, n) in lines(set.spec.dims, axis) {
-            let mut prev = if border_is_outside { 0 } else { INF };
-            for k in 0..n {
-                let i = start + k * stride;
-                prev = d[i].min(prev.saturating_add(1));
-                d[i] = prev;
+        par_lines(&mut d, set.spec.dims, axis, |line| {
+            let mut prev = border;
+            for v in line.iter_mut() {
+                prev = (*v).min(prev.saturating_add(1));
+                *v = prev;
             }
-            let mut prev = if border_is_outside { 0 } else { INF };
-            for k in (0..n).rev() {
-                let i = start + k * stride;
-                prev = d[i].min(prev.saturating_add(1));
-                d[i] = prev;
+            let mut prev = border;
+            for v in line.iter_mut().rev() {
+                prev = (*v).min(prev.saturating_add(1));
+                *v = prev;
             }
-        }
+        });
     }
     Grid { spec: set.spec, data: d }
 }
@@ -95,18 +123,35 @@ pub fn euclidean_squared(set: &Grid<bool>, border_is_outside: bool) -> Grid<u64>
     let dims = set.spec.dims;
     const BIG: f64 = 1e18;
     let mut d: Vec<f64> = set.data.iter().map(|&inside| if inside { BIG } else { 0.0 }).collect();
-    for axis in 0..3 {
-        for (start, stride, n) in lines(dims, axis) {
-            // With an outside border, pad the line with outside voxels at −1 and n.
-            let pad = usize::from(border_is_outside);
-            let m = n + 2 * pad;
-            let f: Vec<f64> =
-                (0..m).map(|k| if k < pad || k >= n + pad { 0.0 } else { d[start + (k - pad) * stride] }).collect();
-            let out = lower_envelope(&f);
-            for k in 0..n {
-                d[start + k * stride] = out[k + pad];
+    // With an outside border, each line is padded with outside voxels at −1 and n.
+    let pad = usize::from(border_is_outside);
+    // Along the first axis the values are 0 or BIG, so the envelope of parabolas is the
+    // squared distance to the nearest 0 on the line: two running scans.
+    par_lines(&mut d, dims, 0, |line| {
+        let border = if border_is_outside { Some(-1) } else { None };
+        let mut nearest: Vec<Option<i64>> = Vec::with_capacity(line.len());
+        let mut last = border;
+        for (k, &v) in line.iter().enumerate() {
+            last = if v == 0.0 { Some(k as i64) } else { last };
+            nearest.push(last);
+        }
+        let mut next = border.map(|_| line.len() as i64);
+        for (k, v) in line.iter_mut().enumerate().rev() {
+            next = if *v == 0.0 { Some(k as i64) } else { next };
+            let k = k as i64;
+            let gap = [nearest[k as usize].map(|p| k - p), next.map(|p| p - k)].into_iter().flatten().min();
+            if let Some(gap) = gap {
+                *v = (gap * gap) as f64;
             }
         }
+    });
+    for axis in 1..3 {
+        par_lines(&mut d, dims, axis, |line| {
+            let n = line.len();
+            let f: Vec<f64> =
+                (0..n + 2 * pad).map(|k| if k < pad || k >= n + pad { 0.0 } else { line[k - pad] }).collect();
+            line.copy_from_slice(&lower_envelope(&f)[pad..n + pad]);
+        });
     }
     Grid { spec: set.spec, data: d.into_iter().map(|v| if v >= BIG { u64::MAX } else { v as u64 }).collect() }
 }

@@ -8,7 +8,7 @@
 
 use std::collections::VecDeque;
 
-use crate::distance::lines;
+use crate::distance::par_lines;
 use rayon::prelude::*;
 
 use crate::grid::{axis_neighbours, neighbours6, par_positions, Grid, Padded};
@@ -27,16 +27,16 @@ pub struct Opening {
 pub fn opening(distance: &Grid<u32>) -> Opening {
     let spec = distance.spec;
     assert!(spec.len() <= u32::MAX as usize, "grid too large for 32-bit voxel indices");
-    let mut radius = distance.data.clone();
-    let mut centre: Vec<u32> = (0..spec.len() as u32).collect();
-    let mut queue = VecDeque::new();
+    // Radius and centre side by side, so that a line is one slice.
+    let mut balls: Vec<(u32, u32)> = distance.data.iter().zip(0..spec.len() as u32).map(|(&r, c)| (r, c)).collect();
     for axis in 0..3 {
-        for (start, stride, n) in lines(spec.dims, axis) {
-            for forward in [true, false] {
-                dilate_line(&mut radius, &mut centre, start, stride, n, forward, &mut queue);
-            }
-        }
+        par_lines(&mut balls, spec.dims, axis, |line| {
+            let mut queue = VecDeque::new();
+            dilate_line(line.iter_mut(), &mut queue);
+            dilate_line(line.iter_mut().rev(), &mut queue);
+        });
     }
+    let (radius, centre) = balls.into_iter().unzip();
     Opening { radius: Grid { spec, data: radius }, centre: Grid { spec, data: centre } }
 }
 
@@ -49,24 +49,15 @@ struct LineBall {
     end: u64,
 }
 
-/// Alg. 7 on the line `start + k·stride` (k < n), scanned forwards or backwards: every
-/// voxel takes the largest ball, among those met so far, that still covers it. The queue
-/// holds candidates by decreasing radius and increasing reach; at equal radius the voxel's
-/// own entry wins, so a voxel whose own ball is the largest stays a root.
-fn dilate_line(
-    radius: &mut [u32],
-    centre: &mut [u32],
-    start: usize,
-    stride: usize,
-    n: usize,
-    forward: bool,
-    queue: &mut VecDeque<LineBall>,
-) {
+/// Alg. 7 on one line of (radius, centre) pairs, in the order given (forwards or
+/// backwards): every voxel takes the largest ball, among those met so far, that still
+/// covers it. The queue holds candidates by decreasing radius and increasing reach; at
+/// equal radius the voxel's own entry wins, so a voxel whose own ball is the largest stays a
+/// root.
+fn dilate_line<'a>(line: impl Iterator<Item = &'a mut (u32, u32)>, queue: &mut VecDeque<LineBall>) {
     queue.clear();
-    for step in 0..n {
-        let k = if forward { step } else { n - 1 - step };
-        let i = start + k * stride;
-        let current = LineBall { radius: radius[i], centre: centre[i], end: step as u64 + radius[i] as u64 };
+    for (step, ball) in line.enumerate() {
+        let current = LineBall { radius: ball.0, centre: ball.1, end: step as u64 + ball.0 as u64 };
         if current.radius == 0 {
             queue.clear();
         } else if queue.front().is_some_and(|f| f.end == step as u64) {
@@ -87,8 +78,7 @@ fn dilate_line(
             }
         }
         let front = queue.front().expect("the queue holds at least the current voxel's ball or a larger one");
-        radius[i] = front.radius;
-        centre[i] = front.centre;
+        *ball = (front.radius, front.centre);
     }
 }
 
