@@ -11,9 +11,9 @@ const INF: u32 = u32::MAX / 4;
 
 /// Calls `f` on every line of the grid along `axis` (dimensions `dims`, x fastest), each
 /// as a contiguous slice from its low end, lines in parallel. Lines along y and z are
-/// copied into a buffer and back: walked in place they step by a row or a plane, a cache
-/// miss per voxel on a large grid. Lines along z are grouped by y, so the rows a group
-/// copies are contiguous and stay in the cache from one column to the next.
+/// copied into a buffer and back, so that each task owns its lines as slices (on one
+/// thread this costs no more than stepping through them in place). Lines along z are
+/// grouped by y: the rows a group copies from stay in the cache from one column to the next.
 pub(crate) fn par_lines<T: Copy + Send + Sync>(
     data: &mut [T],
     dims: [usize; 3],
@@ -128,20 +128,23 @@ pub fn euclidean_squared(set: &Grid<bool>, border_is_outside: bool) -> Grid<u64>
     // Along the first axis the values are 0 or BIG, so the envelope of parabolas is the
     // squared distance to the nearest 0 on the line: two running scans.
     par_lines(&mut d, dims, 0, |line| {
-        let border = if border_is_outside { Some(-1) } else { None };
-        let mut nearest: Vec<Option<i64>> = Vec::with_capacity(line.len());
-        let mut last = border;
-        for (k, &v) in line.iter().enumerate() {
-            last = if v == 0.0 { Some(k as i64) } else { last };
-            nearest.push(last);
-        }
-        let mut next = border.map(|_| line.len() as i64);
-        for (k, v) in line.iter_mut().enumerate().rev() {
-            next = if *v == 0.0 { Some(k as i64) } else { next };
-            let k = k as i64;
-            let gap = [nearest[k as usize].map(|p| k - p), next.map(|p| p - k)].into_iter().flatten().min();
-            if let Some(gap) = gap {
-                *v = (gap * gap) as f64;
+        // Steps to the last 0 before each voxel, then to the next one after it; infinite
+        // where there is none (the border counts as a 0 when it is outside).
+        let beyond = if border_is_outside { 0.0 } else { f64::INFINITY };
+        let mut gap = beyond;
+        let before: Vec<f64> = line
+            .iter()
+            .map(|&v| {
+                gap = if v == 0.0 { 0.0 } else { gap + 1.0 };
+                gap
+            })
+            .collect();
+        gap = beyond;
+        for (v, &before) in line.iter_mut().zip(&before).rev() {
+            gap = if *v == 0.0 { 0.0 } else { gap + 1.0 };
+            let nearest = gap.min(before);
+            if nearest.is_finite() {
+                *v = nearest * nearest;
             }
         }
     });
