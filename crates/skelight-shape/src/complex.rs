@@ -44,10 +44,11 @@ impl Complex {
     pub fn from_voxels(set: &Grid<bool>) -> Complex {
         let [w, h, d] = set.spec.dims;
         let dims = [2 * w + 1, 2 * h + 1, 2 * d + 1];
-        let mut c = Complex { dims, cells: vec![false; (dims[0] + 2) * (dims[1] + 2) * (dims[2] + 2)] };
-        let [_, sy, sz] = c.strides();
-        c.cells.par_chunks_mut(sz).enumerate().skip(1).take(dims[2]).for_each(|(pz, plane)| {
-            let zs = voxel_span(pz - 1, d);
+        let mut c = Complex { dims, cells: Vec::new() };
+        let mut cells = vec![false; (dims[0] + 2) * (dims[1] + 2) * (dims[2] + 2)];
+        let sy = c.strides()[1];
+        c.par_planes_mut(&mut cells, |z, plane| {
+            let zs = voxel_span(z, d);
             for py in 0..dims[1] {
                 let row = &mut plane[(py + 1) * sy + 1..][..dims[0]];
                 for z in zs.clone() {
@@ -61,7 +62,16 @@ impl Complex {
                 }
             }
         });
+        c.cells = cells;
         c
+    }
+
+    /// Calls `f(z, plane)` for every z plane of the doubled grid (`z` its doubled
+    /// coordinate) with that plane's cells of `out` (one value per array cell, padding rows
+    /// and columns included), planes in parallel.
+    pub fn par_planes_mut<T: Send>(&self, out: &mut [T], f: impl Fn(usize, &mut [T]) + Sync) {
+        let sz = self.strides()[2];
+        out.par_chunks_mut(sz).enumerate().skip(1).take(self.dims[2]).for_each(|(pz, plane)| f(pz - 1, plane));
     }
 
     /// Strides of the padded array along x, y and z.

@@ -205,6 +205,11 @@ impl Padded {
         self.row_start(y, z) + x
     }
 
+    /// Grid coordinates of the voxel at index `i` (not padding).
+    pub(crate) fn coords(&self, i: usize) -> [usize; 3] {
+        [i % self.row - 1, i % self.plane / self.row - 1, i / self.plane - 1]
+    }
+
     /// Index of the first voxel of row (y, z) (grid coordinates).
     fn row_start(&self, y: usize, z: usize) -> usize {
         (z + 1) * self.plane + (y + 1) * self.row + 1

@@ -11,7 +11,7 @@ use std::collections::VecDeque;
 use crate::distance::par_lines;
 use rayon::prelude::*;
 
-use crate::grid::{axis_neighbours, neighbours6, par_positions, Grid, Padded};
+use crate::grid::{axis_neighbours, par_positions, Grid, Padded};
 
 /// The opening map and an opening forest.
 pub struct Opening {
@@ -105,10 +105,7 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
     let layout = Padded::new(spec.dims);
     let d: Vec<u16> = layout.pad(&l1.data, 0, |r| r as u16);
     let strides = layout.strides();
-    // A ball whose centre has a 6-neighbour with a larger radius lies inside that one's
-    // ball, so only the other centres (ridges of the map) need a walk.
-    let is_ridge = |i: usize| d[i] > 0 && axis_neighbours(i, strides).iter().all(|&j| d[j] <= d[i]);
-    let ridges = par_positions(d.len(), is_ridge);
+    let ridges = ridges(&d, strides);
     // Centres by radius (a counting sort: radii are small), largest first. first[r]: where
     // radius r starts among the centres.
     let mut first = vec![0u32; max_radius + 2];
@@ -188,7 +185,10 @@ pub fn l1_opening_at(l1: &Grid<u32>, voxels: &[usize]) -> Vec<u32> {
         wanted[fill[b]] = (p, k);
         fill[b] += 1;
     }
-    let centres = ridge_centres(l1);
+    let layout = Padded::new(spec.dims);
+    let d = layout.pad(&l1.data, 0, |r| r);
+    let centres: Vec<([usize; 3], u32)> =
+        ridges(&d, layout.strides()).into_iter().map(|i| (layout.coords(i), d[i])).collect();
     let raise = |mut best: Vec<u32>, &(y, r): &([usize; 3], u32)| {
         // The ball {x : d₁(x, y) < r} lies in the box y ± (r − 1).
         let reach = r as usize - 1;
@@ -216,27 +216,12 @@ pub fn l1_opening_at(l1: &Grid<u32>, voxels: &[usize]) -> Vec<u32> {
 /// Side, in voxels, of the cubes in which [`l1_opening_at`] buckets the wanted voxels.
 const BUCKET: usize = 16;
 
-/// The centres of the maximal L1 balls that no other maximal ball contains trivially: voxels
-/// of the set with no 6-neighbour of larger distance (see [`l1_opening`]), with their
-/// radius, found plane by plane in parallel.
-fn ridge_centres(l1: &Grid<u32>) -> Vec<([usize; 3], u32)> {
-    let [nx, ny, nz] = l1.spec.dims;
-    let planes: Vec<Vec<([usize; 3], u32)>> = (0..nz)
-        .into_par_iter()
-        .map(|z| {
-            let mut found = Vec::new();
-            for y in 0..ny {
-                for x in 0..nx {
-                    let r = *l1.get(x, y, z);
-                    if r > 0 && neighbours6(l1.spec.dims, l1.spec.index(x, y, z)).all(|j| l1.data[j] <= r) {
-                        found.push(([x, y, z], r));
-                    }
-                }
-            }
-            found
-        })
-        .collect();
-    planes.concat()
+/// The ridges of the L1 map `d` (a padded array with the given strides, 0 in the padding):
+/// voxels of the set with no 6-neighbour of larger distance. A ball whose centre has a
+/// 6-neighbour with a larger radius lies inside that one's ball, so only the balls of
+/// ridges matter to the opening.
+fn ridges<T: Copy + PartialOrd + From<u8> + Sync>(d: &[T], strides: [usize; 3]) -> Vec<usize> {
+    par_positions(d.len(), |i| d[i] > T::from(0) && axis_neighbours(i, strides).iter().all(|&j| d[j] <= d[i]))
 }
 
 /// Decenterness DC₁ = π₁ − D₁ (Def. 6.4): 0 on the centres of the largest balls, growing
@@ -331,7 +316,8 @@ mod tests {
         }
     }
 
-    /// On a grid several buckets wide, with walls to make ridges of many radii.
+    /// On a grid several buckets wide, with scattered outside voxels so that balls of many
+    /// radii meet.
     #[test]
     fn l1_opening_at_a_few_voxels_agrees_with_the_map() {
         use crate::distance::l1;

@@ -330,16 +330,15 @@ const TYPE_SHIFT: u32 = 5;
 fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
     let cells = &x.cells[..];
     let [_, sy, sz] = x.strides();
-    let [nx, ny, nz] = x.dims;
+    let [nx, ny, _] = x.dims;
     let mut state = vec![0u8; cells.len()];
-    state.par_chunks_mut(sz).enumerate().skip(1).take(nz).for_each(|(pz, plane)| {
-        let z = pz - 1;
+    x.par_planes_mut(&mut state, |z, plane| {
         for y in 0..ny {
             let (even_y, even_z) = (u8::from(y & 1 == 0), u8::from(z & 1 == 0));
             let ty_yz = ((y & 1) << 1 | (z & 1) << 2) as u8;
             let row = (y + 1) * sy + 1;
             for px in 0..nx {
-                let i = pz * sz + row + px;
+                let i = (z + 1) * sz + row + px;
                 if !cells[i] {
                     continue;
                 }
