@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::complex::Complex;
 use crate::distance::{chessboard, euclidean_squared};
-use crate::grid::{neighbours6, Grid, GridError, GridSpec};
+use crate::grid::{Grid, GridError, GridSpec};
 use crate::labeling::{opening_forest_labelling, Labelling};
 use crate::mapping::NodeMapping;
 use crate::opening::opening;
@@ -201,25 +201,55 @@ fn nearest_empty_voxel(empty: &Grid<bool>, anchor: &Anchor) -> Option<usize> {
     best.map(|(_, i)| i)
 }
 
-/// The empty voxels joined to the grid's border by 6-paths of empty voxels.
+/// The empty voxels joined to the grid's border by 6-paths of empty voxels, by a scanline
+/// fill: each seed grows to its whole run of empty voxels along x, and the rows beside the
+/// run (±y, ±z) are scanned for runs not reached yet, one seed each. Rows are read in order
+/// and few seeds are stacked, so a large shell of air is filled at memory speed (classroom
+/// box 430: 0.50 s voxel by voxel, with a division per neighbour).
 fn reached_from_border(empty: &Grid<bool>) -> Vec<bool> {
-    let dims = empty.spec.dims;
-    let mut reached = vec![false; empty.data.len()];
-    let mut stack: Vec<usize> = (0..empty.data.len())
-        .filter(|&i| {
-            let v = empty.spec.coords(i);
-            let border = (0..3).any(|a| v[a] == 0 || v[a] + 1 == dims[a]);
-            border && empty.data[i]
-        })
-        .collect();
-    for &i in &stack {
-        reached[i] = true;
+    let [w, h, d] = empty.spec.dims;
+    let open = &empty.data[..];
+    let mut reached = vec![false; open.len()];
+    // Every voxel of a border row, and the two ends of every other row.
+    let mut stack: Vec<usize> = Vec::new();
+    for z in 0..d {
+        for y in 0..h {
+            let row = (z * h + y) * w;
+            if y == 0 || z == 0 || y + 1 == h || z + 1 == d {
+                stack.extend((row..row + w).filter(|&i| open[i]));
+            } else {
+                stack.extend([row, row + w - 1].into_iter().filter(|&i| open[i]));
+            }
+        }
     }
     while let Some(i) = stack.pop() {
-        for j in neighbours6(dims, i) {
-            if empty.data[j] && !reached[j] {
-                reached[j] = true;
-                stack.push(j);
+        if reached[i] {
+            continue;
+        }
+        let row = i - i % w;
+        let (mut a, mut b) = (i, i + 1);
+        while a > row && open[a - 1] && !reached[a - 1] {
+            a -= 1;
+        }
+        while b < row + w && open[b] && !reached[b] {
+            b += 1;
+        }
+        reached[a..b].fill(true);
+        let (y, z) = ((i / w) % h, i / (w * h));
+        let beside = [
+            (y > 0, -(w as isize)),
+            (y + 1 < h, w as isize),
+            (z > 0, -((w * h) as isize)),
+            (z + 1 < d, (w * h) as isize),
+        ];
+        for (_, step) in beside.into_iter().filter(|&(inside, _)| inside) {
+            let mut in_run = false;
+            for j in (a..b).map(|j| j.wrapping_add_signed(step)) {
+                let fresh = open[j] && !reached[j];
+                if fresh && !in_run {
+                    stack.push(j);
+                }
+                in_run = fresh;
             }
         }
     }
@@ -229,6 +259,7 @@ fn reached_from_border(empty: &Grid<bool>) -> Vec<bool> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::grid::neighbours6;
 
     fn at(resolution: usize) -> AnalysisSettings {
         AnalysisSettings { resolution: Resolution::Longest(resolution), ..Default::default() }
@@ -305,6 +336,33 @@ mod tests {
         assert!(near(&a.skeleton) < 2.5 * voxel, "{} voxels away", near(&a.skeleton) / voxel);
         assert!(near(&plain.skeleton) > 4.0 * voxel, "{} voxels away", near(&plain.skeleton) / voxel);
         assert_eq!(a.skeleton.components(), plain.skeleton.components());
+    }
+
+    /// The scanline fill reaches exactly the voxels a voxel-by-voxel search from the border
+    /// reaches, on random grids dense enough to hold enclosed pockets and long runs.
+    #[test]
+    fn scanline_fill_matches_a_voxel_search() {
+        let mut r = crate::testing::Lcg(5);
+        for (k, dims) in
+            [[7, 5, 4], [1, 6, 6], [12, 9, 8], [9, 1, 1], [16, 16, 3]].into_iter().cycle().take(40).enumerate()
+        {
+            let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims };
+            let density = 0.45 + 0.4 * (k % 4) as f64 / 3.0;
+            let empty = Grid { spec, data: (0..spec.len()).map(|_| r.next() < density).collect() };
+            let mut oracle = vec![false; spec.len()];
+            let on_border = |i: usize| {
+                let v = spec.coords(i);
+                (0..3).any(|a| v[a] == 0 || v[a] + 1 == dims[a])
+            };
+            let mut stack: Vec<usize> = (0..spec.len()).filter(|&i| on_border(i) && empty.data[i]).collect();
+            while let Some(i) = stack.pop() {
+                if std::mem::replace(&mut oracle[i], true) {
+                    continue;
+                }
+                stack.extend(neighbours6(dims, i).filter(|&j| empty.data[j] && !oracle[j]));
+            }
+            assert_eq!(reached_from_border(&empty), oracle, "grid {k}, {dims:?}");
+        }
     }
 
     #[test]
