@@ -333,29 +333,37 @@ const TYPE_SHIFT: u32 = 5;
 /// The state byte of every cell of `x` (see [`COUNT`]), built plane by plane in parallel.
 /// Along a row of the doubled grid the y and z parities are fixed and the x parity
 /// alternates, so which axis neighbours are cofaces is known without looking up the type:
-/// the count is a sum of masked neighbour flags, with no branch per coface.
+/// the count is a sum of masked neighbour flags, and a cell outside the complex is masked
+/// to 0 rather than skipped. With no branch the rows vectorise (door: 15.6 M cells, ~10 ms
+/// a call with a branch per cell; the constrained collapse and each piercing round call it too).
 fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
     let cells = &x.cells[..];
     let [_, sy, sz] = x.strides();
     let [nx, ny, _] = x.dims;
     let mut state = vec![0u8; cells.len()];
+    let keep_none = vec![false; nx];
     x.par_planes_mut(&mut state, |z, plane| {
         for y in 0..ny {
             let (even_y, even_z) = (u8::from(y & 1 == 0), u8::from(z & 1 == 0));
             let ty_yz = ((y & 1) << 1 | (z & 1) << 2) as u8;
             let row = (y + 1) * sy + 1;
+            let at = |offset: isize| -> &[bool] {
+                let start = ((z + 1) * sz + row).wrapping_add_signed(offset);
+                &cells[start..start + nx]
+            };
+            let (here, left, right) = (at(0), at(-1), at(1));
+            let (below, above, back, front) =
+                (at(-(sy as isize)), at(sy as isize), at(-(sz as isize)), at(sz as isize));
+            let kept = keep.map_or(&keep_none[..], |k| &k[(z + 1) * sz + row..][..nx]);
+            let out = &mut plane[row..row + nx];
             for px in 0..nx {
-                let i = (z + 1) * sz + row + px;
-                if !cells[i] {
-                    continue;
-                }
-                let on = |j: usize| u8::from(cells[j]);
                 let even_x = u8::from(px & 1 == 0);
-                let count = even_x * (on(i - 1) + on(i + 1))
-                    + even_y * (on(i - sy) + on(i + sy))
-                    + even_z * (on(i - sz) + on(i + sz));
-                let kept = if keep.is_some_and(|k| k[i]) { KEPT_BIAS } else { 0 };
-                plane[row + px] = ALIVE | (ty_yz | (px & 1) as u8) << TYPE_SHIFT | (count + kept);
+                let count = even_x * (u8::from(left[px]) + u8::from(right[px]))
+                    + even_y * (u8::from(below[px]) + u8::from(above[px]))
+                    + even_z * (u8::from(back[px]) + u8::from(front[px]));
+                let ty = ty_yz | (px & 1) as u8;
+                let face = ALIVE | ty << TYPE_SHIFT | (count + KEPT_BIAS * u8::from(kept[px]));
+                out[px] = u8::from(here[px]) * face;
             }
         }
     });
