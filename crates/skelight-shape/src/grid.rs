@@ -167,6 +167,11 @@ impl BitSet {
         *word |= bit;
         new
     }
+
+    #[inline]
+    pub(crate) fn contains(&self, i: usize) -> bool {
+        self.words[i / 64] >> (i % 64) & 1 == 1
+    }
 }
 
 /// The six axis neighbours of cell `i` of an array with strides `[1, sy, sz]`, in the order

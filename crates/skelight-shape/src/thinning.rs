@@ -11,9 +11,11 @@
 
 use crate::complex::{voxel_span, Complex};
 use crate::distance::l1;
-use crate::grid::{axis_neighbours, par_positions, BitSet, Grid};
+use crate::grid::{par_positions, BitSet, Grid};
 use crate::opening::l1_opening_at;
 use rayon::prelude::*;
+
+mod replay;
 
 /// A layer number. Two per face of the complex are kept, so 16 bits rather than 32 take a
 /// sixth off the analysis' peak memory (door 234: 503 → 422 MB) and the dated collapse
@@ -268,7 +270,7 @@ fn collapse_in_slabs(
                 if let Some(&ahead) = l.candidates.get(i + AHEAD) {
                     prefetch_around(&state, strides, ahead);
                 }
-                l.pairs.extend(steps.layer_pair(&state, g));
+                l.pairs.extend(steps.layer_pair(|i| state[i], g));
             }
             l.candidates.clear();
             l.pairs.len()
@@ -405,16 +407,16 @@ impl Neighbours {
     /// The pair removed this layer with smaller face `g`, if any (see [`collapse_from`]):
     /// g is free (in the complex, not kept, one coface f left) and is f's first free facet.
     #[inline]
-    fn layer_pair(&self, state: &[u8], g: usize) -> Option<Pair> {
-        let is_free = |t: usize| state[t] & (ALIVE | COUNT) == ALIVE | 1;
+    fn layer_pair(&self, state: impl Fn(usize) -> u8, g: usize) -> Option<Pair> {
+        let is_free = |t: usize| state(t) & (ALIVE | COUNT) == ALIVE | 1;
         if !is_free(g) {
             return None;
         }
-        let f = self.cofaces[(state[g] >> TYPE_SHIFT) as usize]
+        let f = self.cofaces[(state(g) >> TYPE_SHIFT) as usize]
             .iter()
             .map(|&o| g.wrapping_add_signed(o))
-            .find(|&f| state[f] & ALIVE != 0)?;
-        let first = self.facets(state[f]).iter().map(|&o| f.wrapping_add_signed(o)).find(|&t| is_free(t));
+            .find(|&f| state(f) & ALIVE != 0)?;
+        let first = self.facets(state(f)).iter().map(|&o| f.wrapping_add_signed(o)).find(|&t| is_free(t));
         (first == Some(g)).then_some((f, g))
     }
 }
@@ -445,8 +447,10 @@ pub fn curvilinear_skeleton(
     anchors: &[usize],
 ) -> Result<(Complex, Dates), TooManyLayers> {
     let (mut skeleton, dates, keep) = constraint_set(set, constraint, anchors)?;
-    skip_shared_layers(&mut skeleton, &dates, &keep);
-    thin_keeping(&mut skeleton, &keep);
+    if !replay::replay_constrained(&mut skeleton, &dates, &keep) {
+        par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
+    }
+    pierce_and_thin(&mut skeleton, &keep);
     Ok((skeleton, dates))
 }
 
@@ -466,57 +470,6 @@ fn dated_collapse(x: &Complex, max_layers: u32) -> Result<Dates, TooManyLayers> 
         }
     }
     Ok(dates)
-}
-
-/// Alg. 2 is deterministic and local, so in each connected part of the complex the collapse
-/// keeping `keep` removes exactly the pairs of the unconstrained one until a face of `keep`
-/// in that part is about to die: moves `x` (the complex the dates were taken on) to the
-/// unconstrained state before that layer, part by part, skipping the work the two collapses
-/// share. (Parts never interact: a pair's removal reads and changes only faces joined to it.)
-///
-/// Parts are found by walking them from their kept faces in order of death, while the walks
-/// stay within a budget (1/1024 of the faces, a few milliseconds); every face not walked
-/// skips to the earliest death among the kept faces not walked yet, no later than its own
-/// part's. On the door the earliest kept faces lie in small closed pockets (dying at layers
-/// 6–15) while the room's die late, so the room skips to layer 58 instead of 6.
-fn skip_shared_layers(x: &mut Complex, dates: &Dates, keep: &[bool]) {
-    let n = x.cells.len();
-    let mut kept: Vec<(Date, usize)> = par_positions(n, |i| keep[i]).into_iter().map(|i| (dates.death[i], i)).collect();
-    kept.sort_unstable();
-    let budget = (n / 1024).max(1 << 12);
-    let strides = x.strides();
-    let mut seen = BitSet::new(n);
-    // Faces walked, each with the layer its part skips to.
-    let mut walked: Vec<(usize, Date)> = Vec::new();
-    let mut rest = NEVER;
-    'parts: for &(first, w) in &kept {
-        if !seen.insert(w) {
-            continue; // in a part walked from an earlier kept face
-        }
-        if walked.len() >= budget {
-            rest = first;
-            break;
-        }
-        // Facets and cofaces are the six axis neighbours in the doubled grid; padding cells
-        // are never in the complex.
-        let mut stack = vec![w];
-        while let Some(i) = stack.pop() {
-            walked.push((i, first));
-            if walked.len() >= budget {
-                rest = first; // this part and every one not walked skip to `first`
-                break 'parts;
-            }
-            for j in axis_neighbours(i, strides) {
-                if x.cells[j] && seen.insert(j) {
-                    stack.push(j);
-                }
-            }
-        }
-    }
-    x.cells.par_iter_mut().zip(&dates.death).for_each(|(c, &death)| *c &= death >= rest);
-    for (i, first) in walked {
-        x.cells[i] = dates.death[i] >= first;
-    }
 }
 
 /// The complex of `set`, the dates of its unconstrained thinning, and Alg. 3's constraint
@@ -541,6 +494,12 @@ pub fn constraint_set(
 /// surface parts left and collapses again, until only curves remain.
 pub fn thin_keeping(x: &mut Complex, keep: &[bool]) {
     par_dir_collapse(x, Some(keep), u32::MAX, None);
+    pierce_and_thin(x, keep);
+}
+
+/// §6.2.4 on `x`, collapsed keeping `keep`: pierces the surface parts left and collapses
+/// again, until only curves remain.
+fn pierce_and_thin(x: &mut Complex, keep: &[bool]) {
     loop {
         let pierced = pierce_surfaces(x);
         if pierced.is_empty() {
@@ -1141,49 +1100,67 @@ mod tests {
         }
     }
 
-    /// Starting the constrained collapse where it leaves the unconstrained one changes
-    /// nothing: the skeleton is the one thinned from the whole complex.
-    #[test]
-    fn skipping_the_shared_layers_keeps_the_skeleton() {
-        let shapes = [two_rooms_and_a_gap(1.0), random_object([12, 11, 10], 9, 0.85), random_object([9, 8, 7], 5, 0.8)];
-        let mut skipped_any = false;
-        for set in &shapes {
-            let (mut whole, dates, keep) = constraint_set(set, EdgeConstraint::Thesis, &[]).unwrap();
-            skipped_any |= keep.iter().zip(&dates.death).all(|(&k, &d)| !k || d > 1);
-            thin_keeping(&mut whole, &keep);
-            let (skipped, _) = curvilinear_skeleton(set, EdgeConstraint::Thesis, &[]).unwrap();
-            assert_eq!(skipped, whole);
+    /// Every face of a random selection of `x`'s faces with all of its own faces: a closed
+    /// set, as W is.
+    fn random_closed_set(x: &Complex, seed: u64, share: f64) -> Vec<bool> {
+        let mut r = Lcg(seed);
+        let mut keep = vec![false; x.cells.len()];
+        for i in (0..x.cells.len()).filter(|&i| x.cells[i]) {
+            if r.next() >= share {
+                continue;
+            }
+            let p = x.coords(i);
+            // The faces of a face: −1, 0 or +1 along each of its odd axes.
+            let odd: Vec<usize> = (0..3).filter(|&a| p[a] & 1 == 1).collect();
+            for k in 0..3usize.pow(odd.len() as u32) {
+                let mut q = p;
+                let mut code = k;
+                for &a in &odd {
+                    q[a] = q[a] + code % 3 - 1;
+                    code /= 3;
+                }
+                keep[x.index(q)] = true;
+            }
         }
-        assert!(skipped_any, "no shape had a layer to skip");
+        keep
     }
 
-    /// A thin closed pocket whose kept faces die early, beside a wide hall whose kept faces
-    /// die late: the hall's part skips to its own first kept death, not the pocket's, and
-    /// the skeleton is still the one thinned from the whole complex.
+    /// The constrained collapse replayed against the dated one ends where the collapse run
+    /// on the whole complex ends: with Alg. 3's W, with W and anchors, and with random
+    /// closed sets kept, on shapes with pockets, tunnels and cavities.
     #[test]
-    fn each_part_skips_to_its_own_first_kept_death() {
-        let set = set_from([40, 12, 16], 1.0, |x, y, z| {
+    fn the_replayed_constrained_collapse_is_the_collapse() {
+        let hall_and_pocket = set_from([40, 12, 16], 1.0, |x, y, z| {
             let hall = (1..39).contains(&x) && (1..10).contains(&y) && (1..10).contains(&z);
             let pocket = (1..39).contains(&x) && (1..4).contains(&y) && (12..15).contains(&z);
             hall || pocket
         });
-        let (whole, dates, keep) = constraint_set(&set, EdgeConstraint::Thesis, &[]).unwrap();
-        let in_pocket = |i: usize| whole.coords(i)[2] >= 22;
-        let first = |pocket: bool| {
-            (0..keep.len()).filter(|&i| keep[i] && in_pocket(i) == pocket).map(|i| dates.death[i]).min().unwrap()
-        };
-        let (pocket_first, hall_first) = (first(true), first(false));
-        assert!(pocket_first < hall_first, "the pocket's kept faces should die first: {pocket_first} vs {hall_first}");
-        let mut skipped = whole.clone();
-        skip_shared_layers(&mut skipped, &dates, &keep);
-        for i in (0..keep.len()).filter(|&i| whole.cells[i]) {
-            let part_first = if in_pocket(i) { pocket_first } else { hall_first };
-            assert_eq!(skipped.cells[i], dates.death[i] >= part_first, "face {i}");
+        let mut shapes = vec![two_rooms_and_a_gap(1.0), hall_and_pocket];
+        shapes.extend((0..80).map(|s| {
+            random_object([9 + s as usize % 7, 8 + s as usize % 5, 7 + s as usize % 3], 100 + s, 0.6 + 0.004 * s as f64)
+        }));
+        for (k, set) in shapes.iter().enumerate() {
+            // Every seventh voxel of the set an anchor.
+            let anchors: Vec<usize> = (0..set.data.len()).filter(|&v| set.data[v] && v % 7 == 0).collect();
+            let (x, dates, w) = constraint_set(set, EdgeConstraint::Thesis, &[]).unwrap();
+            let (_, _, anchored) = constraint_set(set, EdgeConstraint::Thesis, &anchors).unwrap();
+            let keeps =
+                [w, anchored, random_closed_set(&x, k as u64, 0.002), random_closed_set(&x, k as u64 + 50, 0.01)];
+            for (j, keep) in keeps.iter().enumerate() {
+                let mut dense = x.clone();
+                par_dir_collapse(&mut dense, Some(keep), u32::MAX, None);
+                let mut fast = x.clone();
+                assert!(replay::replay_within(&mut fast, &dates, keep, usize::MAX));
+                assert!(fast == dense, "shape {k}, kept set {j}: the replay ends elsewhere");
+                // Refused when the zone outgrows its bound, leaving the complex as it was.
+                let mut refused = x.clone();
+                let needed = keep.iter().zip(&dates.death).any(|(&k, &d)| k && d != NEVER);
+                assert_eq!(replay::replay_within(&mut refused, &dates, keep, 10), !needed);
+                if needed {
+                    assert!(refused == x, "shape {k}, kept set {j}: a refused replay changed the complex");
+                }
+            }
         }
-        let mut thinned = whole.clone();
-        thin_keeping(&mut thinned, &keep);
-        thin_keeping(&mut skipped, &keep);
-        assert_eq!(skipped, thinned);
     }
 
     /// An anchor in a corner of a corridor's end gets a branch of its own: the skeleton

@@ -1,0 +1,288 @@
+//! Alg. 3's constrained collapse replayed against the dated one it shadows.
+//!
+//! Alg. 2 keeping W removes almost exactly the pairs of the unconstrained collapse: a face
+//! of W outlives its date, and the faces around it may then pair differently, but nothing
+//! else changes (classroom box 430: 10 492 of 133.6 M faces die at another layer; door:
+//! 745 of 14.2 M). Both collapses are local: whether a face goes in a layer depends only on
+//! the states, at the layer's start, of the cells within [`REACH`] of it. So the
+//! constrained run is simulated explicitly only in a zone around the faces where the two
+//! runs differ (and around each face of W from the layer the unconstrained run removes
+//! it); outside the zone its state at layer t is read off the dates (a face is alive iff
+//! it dies at t or later), and its pairs are those of the unconstrained run.
+//!
+//! The zone grows by a ball of radius [`REACH`] around every face whose state comes to
+//! differ, so at each layer's start it holds every face within reach of a difference, and
+//! every face outside it does what the dated run did. Inside, the faces' state bytes are
+//! kept as in [`collapse_from`](super::collapse_from), with coface counts updated when a
+//! coface outside the zone dies at its date.
+
+use super::{Dates, Neighbours, Pair, ALIVE, COUNT, KEPT_BIAS, NEVER, TYPE_SHIFT};
+use crate::complex::Complex;
+use crate::grid::BitSet;
+use rayon::prelude::*;
+
+/// L1 radius, in the doubled grid, of the cells whose states decide whether a face goes in
+/// a layer. As the smaller face g of a pair: g's cofaces (1 step), that coface's facets
+/// (2) and, for their counts, their cofaces (3). As the larger face f: f is maximal (its
+/// cofaces, 1) and has a free facet (2).
+const REACH: i64 = 3;
+
+/// Above this share of the complex's faces in the zone the explicit simulation stops
+/// paying for itself; the caller then runs the dense collapse.
+const MAX_ZONE_SHARE: usize = 16;
+
+/// Moves `x` (the complex `dates` were taken on) to the end of Alg. 2 keeping the faces of
+/// `keep` (a closed set), as [`collapse_from`](super::collapse_from) from `x` would.
+/// Returns false, leaving `x` as it was, if the two collapses differ too widely for the
+/// replay to be worth it.
+pub(super) fn replay_constrained(x: &mut Complex, dates: &Dates, keep: &[bool]) -> bool {
+    let most = x.cells.len() / MAX_ZONE_SHARE;
+    replay_within(x, dates, keep, most)
+}
+
+/// [`replay_constrained`] giving up once the zone holds more than `most` faces.
+pub(super) fn replay_within(x: &mut Complex, dates: &Dates, keep: &[bool], most: usize) -> bool {
+    let Some(alive) = Replay::new(x, dates, keep).run(most) else { return false };
+    x.cells.par_iter_mut().zip(&dates.death).for_each(|(c, &death)| *c &= death == NEVER);
+    for (i, alive) in alive {
+        x.cells[i] = alive;
+    }
+    true
+}
+
+/// The constrained collapse inside the zone.
+struct Replay<'a> {
+    x: &'a Complex,
+    death: &'a [u16],
+    keep: &'a [bool],
+    steps: Neighbours,
+    /// Cell offsets within [`REACH`], as coordinate steps.
+    ball: Vec<[i64; 3]>,
+    zone: BitSet,
+    /// Faces whose ball is in the zone already.
+    grown: BitSet,
+    /// Every zone face, in the order it joined.
+    members: Vec<usize>,
+    /// State bytes of the zone's faces (see [`COUNT`](super::COUNT)); 0 elsewhere.
+    state: Vec<u8>,
+    /// Zone faces by their death date: where the two runs may part if it is not kept.
+    dies: Vec<Vec<usize>>,
+    /// (zone face, coface outside the zone when it joined) by the coface's death date: the
+    /// face loses that coface then, unless the coface has joined the zone since.
+    loses: Vec<Vec<(usize, usize)>>,
+    /// Faces of W by death date (those the dated run removes).
+    kept_dying: Vec<Vec<usize>>,
+}
+
+impl<'a> Replay<'a> {
+    fn new(x: &'a Complex, dates: &'a Dates, keep: &'a [bool]) -> Replay<'a> {
+        let n = x.cells.len();
+        let death = &dates.death[..];
+        let last = death.par_iter().filter(|&&d| d != NEVER).max().copied().unwrap_or(0) as usize;
+        let mut kept_dying = vec![Vec::new(); last + 2];
+        for i in crate::grid::par_positions(n, |i| keep[i] && death[i] != NEVER) {
+            kept_dying[death[i] as usize].push(i);
+        }
+        let r = REACH;
+        let mut ball = Vec::new();
+        for dz in -r..=r {
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    if dx.abs() + dy.abs() + dz.abs() <= r {
+                        ball.push([dx, dy, dz]);
+                    }
+                }
+            }
+        }
+        Replay {
+            x,
+            death,
+            keep,
+            steps: Neighbours::new(x),
+            ball,
+            zone: BitSet::new(n),
+            grown: BitSet::new(n),
+            members: Vec::new(),
+            state: vec![0; n],
+            dies: vec![Vec::new(); last + 2],
+            loses: vec![Vec::new(); last + 2],
+            kept_dying,
+        }
+    }
+
+    /// Type bits of face `i` (bit a set where its coordinate along a is odd).
+    fn type_of(&self, i: usize) -> u8 {
+        let p = self.x.coords(i);
+        (p[0] & 1 | (p[1] & 1) << 1 | (p[2] & 1) << 2) as u8
+    }
+
+    /// Whether face `i` is alive at the start of layer `t` in the dated run.
+    fn dated_alive(&self, i: usize, t: u32) -> bool {
+        self.x.cells[i] && u32::from(self.death[i]) >= t
+    }
+
+    /// The state byte of face `i` at the start of layer `t` of the constrained run.
+    fn state_at(&self, i: usize, t: u32) -> u8 {
+        if self.zone.contains(i) {
+            return self.state[i];
+        }
+        // Outside the zone the face and its cofaces are as in the dated run.
+        if !self.dated_alive(i, t) {
+            return 0;
+        }
+        let ty = self.type_of(i);
+        let count =
+            self.steps.cofaces[ty as usize].iter().filter(|&&o| self.dated_alive(i.wrapping_add_signed(o), t)).count();
+        ALIVE | ty << TYPE_SHIFT | (count as u8 + if self.keep[i] { KEPT_BIAS } else { 0 })
+    }
+
+    /// Adds the cells within [`REACH`] of each of `seeds` to the zone, with their states at
+    /// the start of layer `t`; the new faces free then go to `free`.
+    fn grow(&mut self, seeds: &[usize], t: u32, free: &mut Vec<usize>) {
+        let dims = self.x.dims.map(|d| d as i64);
+        let first = self.members.len();
+        for &s in seeds {
+            if !self.grown.insert(s) {
+                continue;
+            }
+            let p = self.x.coords(s).map(|c| c as i64);
+            for d in &self.ball {
+                let q = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
+                if (0..3).any(|a| q[a] < 0 || q[a] >= dims[a]) {
+                    continue;
+                }
+                let j = self.x.index(q.map(|c| c as usize));
+                if self.x.cells[j] && self.zone.insert(j) {
+                    self.members.push(j);
+                }
+            }
+        }
+        // The new faces were outside the zone until now, so as in the dated run.
+        for k in first..self.members.len() {
+            let j = self.members[k];
+            let alive = self.dated_alive(j, t);
+            self.state[j] = (u8::from(alive) * ALIVE) | (self.type_of(j) << TYPE_SHIFT);
+        }
+        for k in first..self.members.len() {
+            let j = self.members[k];
+            if self.state[j] & ALIVE == 0 {
+                continue;
+            }
+            let ty = (self.state[j] >> TYPE_SHIFT) as usize;
+            let mut count = 0;
+            for &o in &self.steps.cofaces[ty] {
+                let c = j.wrapping_add_signed(o);
+                if self.zone.contains(c) {
+                    count += u8::from(self.state[c] & ALIVE != 0);
+                } else if self.dated_alive(c, t) {
+                    count += 1;
+                    if self.death[c] != NEVER {
+                        self.loses[self.death[c] as usize].push((j, c));
+                    }
+                }
+            }
+            self.state[j] += count + if self.keep[j] { KEPT_BIAS } else { 0 };
+            if self.death[j] != NEVER {
+                self.dies[self.death[j] as usize].push(j);
+            }
+            if self.state[j] & (ALIVE | COUNT) == ALIVE | 1 {
+                free.push(j);
+            }
+        }
+    }
+
+    /// Takes a zone face out of the complex; facets in the zone left free go to `free`.
+    fn remove(&mut self, face: usize, free: &mut Vec<usize>) {
+        self.state[face] &= !ALIVE;
+        let ty = (self.state[face] >> TYPE_SHIFT) as usize;
+        for k in 0..self.steps.facets[ty].len() {
+            let h = face.wrapping_add_signed(self.steps.facets[ty][k]);
+            self.lose_coface(h, free);
+        }
+    }
+
+    /// Zone face `h` lost a coface.
+    fn lose_coface(&mut self, h: usize, free: &mut Vec<usize>) {
+        if self.zone.contains(h) {
+            self.state[h] -= 1;
+            if self.state[h] & (ALIVE | COUNT) == ALIVE | 1 {
+                free.push(h);
+            }
+        }
+    }
+
+    /// Runs the constrained collapse to its end; the zone's faces and whether each is left,
+    /// or `None` if the zone outgrew `most` faces.
+    fn run(mut self, most: usize) -> Option<Vec<(usize, bool)>> {
+        let Some(start) = self.kept_dying.iter().position(|k| !k.is_empty()) else {
+            return Some(Vec::new()); // the dated run removes no face of W: nothing differs
+        };
+        let last = self.dies.len() - 2;
+        let mut free = Vec::new();
+        let sources = std::mem::take(&mut self.kept_dying[start]);
+        self.grow(&sources, start as u32, &mut free);
+        let mut t = start as u32;
+        let mut pairs: Vec<Pair> = Vec::new();
+        let mut parted = Vec::new();
+        while !free.is_empty() || t as usize <= last {
+            let layer = t as usize;
+            // The layer's pairs in the zone, from the states at its start.
+            pairs.clear();
+            for &g in &free {
+                pairs.extend(self.steps.layer_pair(|i| self.state_at(i, t), g));
+            }
+            // A face the dated run removes now may lose its free facet outside the zone,
+            // where no coface count is followed: the only such facets are of faces the
+            // dated run removes in this layer (a free facet's coface goes in its layer).
+            let dying = std::mem::take(&mut self.dies[layer.min(last + 1)]);
+            for &f in &dying {
+                let s = self.state[f];
+                if s & (ALIVE | COUNT) != ALIVE {
+                    continue; // gone already, kept, or not maximal
+                }
+                let first_free = self
+                    .steps
+                    .facets(s)
+                    .iter()
+                    .map(|&o| f.wrapping_add_signed(o))
+                    .find(|&h| self.state_at(h, t) & (ALIVE | COUNT) == ALIVE | 1);
+                if let Some(h) = first_free.filter(|&h| !self.zone.contains(h)) {
+                    pairs.push((f, h));
+                }
+            }
+            pairs.sort_unstable();
+            pairs.dedup();
+            free.clear();
+            // Remove them; faces outside the zone go as in the dated run, at this layer.
+            parted.clear();
+            for &(f, g) in &pairs {
+                for face in [f, g] {
+                    if self.zone.contains(face) {
+                        self.remove(face, &mut free);
+                        if u32::from(self.death[face]) != t {
+                            parted.push(face);
+                        }
+                    }
+                }
+            }
+            if layer <= last {
+                for (h, c) in std::mem::take(&mut self.loses[layer]) {
+                    if !self.zone.contains(c) {
+                        self.lose_coface(h, &mut free);
+                    }
+                }
+            }
+            // Faces the dated run removed now and this one kept.
+            parted.extend(dying.into_iter().filter(|&f| self.state[f] & ALIVE != 0));
+            if layer < last {
+                parted.extend(std::mem::take(&mut self.kept_dying[layer + 1]));
+            }
+            self.grow(&parted, t + 1, &mut free);
+            if self.members.len() > most {
+                return None;
+            }
+            t += 1;
+        }
+        Some(self.members.iter().map(|&i| (i, self.state[i] & ALIVE != 0)).collect())
+    }
+}
