@@ -374,24 +374,43 @@ fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
 
 /// For each of the eight face types, the array offsets of a face's facets, in Alg. 2's
 /// sub-step order (by axis, the facet on the face's lower side first), and of its cofaces
-/// (the padded array has them all).
+/// (the padded array has them all). Held inline rather than in vectors: the collapse's
+/// inner loops read them for every face.
 struct Neighbours {
-    facets: [Vec<isize>; 8],
-    cofaces: [Vec<isize>; 8],
+    facets: [Offsets; 8],
+    cofaces: [Offsets; 8],
+}
+
+/// Up to six array offsets.
+#[derive(Clone, Copy, Default)]
+struct Offsets {
+    steps: [isize; 6],
+    len: usize,
+}
+
+impl Offsets {
+    fn push_pair(&mut self, s: isize) {
+        self.steps[self.len..self.len + 2].copy_from_slice(&[-s, s]);
+        self.len += 2;
+    }
+
+    #[inline]
+    fn as_slice(&self) -> &[isize] {
+        &self.steps[..self.len]
+    }
 }
 
 impl Neighbours {
     fn new(x: &Complex) -> Neighbours {
         let stride = x.strides();
-        let mut facets: [Vec<isize>; 8] = Default::default();
-        let mut cofaces: [Vec<isize>; 8] = Default::default();
+        let mut facets = [Offsets::default(); 8];
+        let mut cofaces = [Offsets::default(); 8];
         for ty in 0..8usize {
             for (a, &s) in stride.iter().enumerate() {
-                let s = s as isize;
                 if ty >> a & 1 == 1 {
-                    facets[ty].extend([-s, s]);
+                    facets[ty].push_pair(s as isize);
                 } else {
-                    cofaces[ty].extend([-s, s]);
+                    cofaces[ty].push_pair(s as isize);
                 }
             }
         }
@@ -401,7 +420,13 @@ impl Neighbours {
     /// Facet offsets of a face with state byte `s`.
     #[inline]
     fn facets(&self, s: u8) -> &[isize] {
-        &self.facets[(s >> TYPE_SHIFT) as usize]
+        self.facets[(s >> TYPE_SHIFT) as usize].as_slice()
+    }
+
+    /// Coface offsets of a face with state byte `s`.
+    #[inline]
+    fn cofaces(&self, s: u8) -> &[isize] {
+        self.cofaces[(s >> TYPE_SHIFT) as usize].as_slice()
     }
 
     /// The pair removed this layer with smaller face `g`, if any (see [`collapse_from`]):
@@ -412,10 +437,7 @@ impl Neighbours {
         if !is_free(g) {
             return None;
         }
-        let f = self.cofaces[(state(g) >> TYPE_SHIFT) as usize]
-            .iter()
-            .map(|&o| g.wrapping_add_signed(o))
-            .find(|&f| state(f) & ALIVE != 0)?;
+        let f = self.cofaces(state(g)).iter().map(|&o| g.wrapping_add_signed(o)).find(|&f| state(f) & ALIVE != 0)?;
         let first = self.facets(state(f)).iter().map(|&o| f.wrapping_add_signed(o)).find(|&t| is_free(t));
         (first == Some(g)).then_some((f, g))
     }

@@ -131,8 +131,12 @@ impl<'a> Replay<'a> {
             return 0;
         }
         let ty = self.type_of(i);
-        let count =
-            self.steps.cofaces[ty as usize].iter().filter(|&&o| self.dated_alive(i.wrapping_add_signed(o), t)).count();
+        let count = self
+            .steps
+            .cofaces(ty << TYPE_SHIFT)
+            .iter()
+            .filter(|&&o| self.dated_alive(i.wrapping_add_signed(o), t))
+            .count();
         ALIVE | ty << TYPE_SHIFT | (count as u8 + if self.keep[i] { KEPT_BIAS } else { 0 })
     }
 
@@ -168,9 +172,8 @@ impl<'a> Replay<'a> {
             if self.state[j] & ALIVE == 0 {
                 continue;
             }
-            let ty = (self.state[j] >> TYPE_SHIFT) as usize;
             let mut count = 0;
-            for &o in &self.steps.cofaces[ty] {
+            for &o in self.steps.cofaces(self.state[j]) {
                 let c = j.wrapping_add_signed(o);
                 if self.zone.contains(c) {
                     count += u8::from(self.state[c] & ALIVE != 0);
@@ -194,10 +197,10 @@ impl<'a> Replay<'a> {
     /// Takes a zone face out of the complex; facets in the zone left free go to `free`.
     fn remove(&mut self, face: usize, free: &mut Vec<usize>) {
         self.state[face] &= !ALIVE;
-        let ty = (self.state[face] >> TYPE_SHIFT) as usize;
-        for k in 0..self.steps.facets[ty].len() {
-            let h = face.wrapping_add_signed(self.steps.facets[ty][k]);
-            self.lose_coface(h, free);
+        // A copy, as the loop changes the zone's states.
+        let facets = self.steps.facets[(self.state[face] >> TYPE_SHIFT) as usize];
+        for &o in facets.as_slice() {
+            self.lose_coface(face.wrapping_add_signed(o), free);
         }
     }
 
