@@ -117,89 +117,106 @@ pub fn chessboard(set: &Grid<bool>, border_is_outside: bool) -> Grid<u32> {
     Grid { spec: set.spec, data: layout.unpad(&d) }
 }
 
-/// Exact squared Euclidean distance (Felzenszwalb & Huttenlocher's lower envelope of
-/// parabolas along each axis in turn).
+/// Squared distances too far to be reached: sums of a few of these and of squared grid
+/// sizes stay far inside i64.
+const FAR: i64 = 1 << 50;
+
+/// Exact squared Euclidean distance, separable (Meijster, Roerdink & Hesselink): along x the
+/// distance to the nearest outside voxel of the line, then along y and z the lower
+/// envelope of the parabolas (x − i)² + f(i), all in integers.
 pub fn euclidean_squared(set: &Grid<bool>, border_is_outside: bool) -> Grid<u64> {
     let dims = set.spec.dims;
-    const BIG: f64 = 1e18;
-    let mut d: Vec<f64> = set.data.iter().map(|&inside| if inside { BIG } else { 0.0 }).collect();
-    // With an outside border, each line is padded with outside voxels at −1 and n.
-    let pad = usize::from(border_is_outside);
-    // Along the first axis the values are 0 or BIG, so the envelope of parabolas is the
-    // squared distance to the nearest 0 on the line: two running scans.
+    let mut d: Vec<i64> = set.data.iter().map(|&inside| if inside { FAR } else { 0 }).collect();
+    // The border counts as an outside voxel at −1 and at n when it is outside.
+    let beyond = if border_is_outside { 0 } else { FAR };
     par_lines(&mut d, dims, 0, |line| {
-        // Steps to the last 0 before each voxel, then to the next one after it; infinite
-        // where there is none (the border counts as a 0 when it is outside).
-        let beyond = if border_is_outside { 0.0 } else { f64::INFINITY };
+        // Steps from the last 0 before each voxel, then from the next 0 after it.
         let mut gap = beyond;
-        let before: Vec<f64> = line
-            .iter()
-            .map(|&v| {
-                gap = if v == 0.0 { 0.0 } else { gap + 1.0 };
-                gap
-            })
-            .collect();
+        for v in line.iter_mut() {
+            gap = if *v == 0 { 0 } else { (gap + 1).min(FAR) };
+            *v = gap;
+        }
         gap = beyond;
-        for (v, &before) in line.iter_mut().zip(&before).rev() {
-            gap = if *v == 0.0 { 0.0 } else { gap + 1.0 };
-            let nearest = gap.min(before);
-            if nearest.is_finite() {
-                *v = nearest * nearest;
-            }
+        for v in line.iter_mut().rev() {
+            gap = if *v == 0 { 0 } else { (gap + 1).min(FAR) };
+            let nearest = gap.min(*v);
+            *v = if nearest < FAR { nearest * nearest } else { FAR };
         }
     });
     for axis in 1..3 {
         par_lines(&mut d, dims, axis, |line| {
-            let n = line.len();
-            let f: Vec<f64> =
-                (0..n + 2 * pad).map(|k| if k < pad || k >= n + pad { 0.0 } else { line[k - pad] }).collect();
-            line.copy_from_slice(&lower_envelope(&f)[pad..n + pad]);
+            ENVELOPE.with_borrow_mut(|scratch| scratch.transform(line, border_is_outside));
         });
     }
-    Grid { spec: set.spec, data: d.into_iter().map(|v| if v >= BIG { u64::MAX } else { v as u64 }).collect() }
+    Grid { spec: set.spec, data: d.into_iter().map(|v| if v >= FAR { u64::MAX } else { v as u64 }).collect() }
 }
 
-/// 1D squared distance transform: out[q] = min_p (q − p)² + f[p].
-fn lower_envelope(f: &[f64]) -> Vec<f64> {
-    let n = f.len();
-    let mut v = vec![0usize; n];
-    let mut z = vec![0f64; n + 1];
-    let mut k = 0usize;
-    z[0] = f64::NEG_INFINITY;
-    z[1] = f64::INFINITY;
-    let inter =
-        |q: usize, p: usize| ((f[q] + (q * q) as f64) - (f[p] + (p * p) as f64)) / (2.0 * q as f64 - 2.0 * p as f64);
-    for q in 1..n {
-        let mut s = inter(q, v[k]);
-        while s <= z[k] {
-            if k == 0 {
-                break;
+thread_local! {
+    /// Each thread's buffers for [`Envelope::transform`], kept from line to line.
+    static ENVELOPE: std::cell::RefCell<Envelope> = const { std::cell::RefCell::new(Envelope::new()) };
+}
+
+/// The lower envelope of parabolas along one line: the positions of the parabolas on it
+/// and where each starts to be the lowest.
+struct Envelope {
+    f: Vec<i64>,
+    owner: Vec<usize>,
+    start: Vec<usize>,
+}
+
+impl Envelope {
+    const fn new() -> Envelope {
+        Envelope { f: Vec::new(), owner: Vec::new(), start: Vec::new() }
+    }
+
+    /// `line[q]` ← min over p of (q − p)² + line[p], with a 0 beyond each end when
+    /// `padded` (an outside border).
+    fn transform(&mut self, line: &mut [i64], padded: bool) {
+        let pad = usize::from(padded);
+        let n = line.len() + 2 * pad;
+        self.f.clear();
+        self.f.extend(std::iter::repeat_n(0, pad).chain(line.iter().copied()).chain(std::iter::repeat_n(0, pad)));
+        let f = &self.f;
+        let parabola = |x: usize, i: usize| (x as i64 - i as i64).pow(2) + f[i];
+        // The first x where the parabola at u lies below the one at i < u.
+        let sep = |i: usize, u: usize| {
+            let (i, u) = (i as i64, u as i64);
+            (u * u - i * i + f[u as usize] - f[i as usize]).div_euclid(2 * (u - i)) + 1
+        };
+        self.owner.clear();
+        self.start.clear();
+        self.owner.push(0);
+        self.start.push(0);
+        for u in 1..n {
+            while let (Some(&i), Some(&x)) = (self.owner.last(), self.start.last()) {
+                if parabola(x, i) <= parabola(x, u) {
+                    break;
+                }
+                self.owner.pop();
+                self.start.pop();
             }
-            k -= 1;
-            s = inter(q, v[k]);
+            match self.owner.last() {
+                None => {
+                    self.owner.push(u);
+                    self.start.push(0);
+                }
+                Some(&i) => {
+                    let x = sep(i, u);
+                    if x < n as i64 {
+                        self.owner.push(u);
+                        self.start.push(x as usize);
+                    }
+                }
+            }
         }
-        if s <= z[k] {
-            // k == 0 and the new parabola dominates everywhere.
-            v[0] = q;
-            z[0] = f64::NEG_INFINITY;
-            z[1] = f64::INFINITY;
-            continue;
+        let mut k = self.owner.len() - 1;
+        for x in (pad..n - pad).rev() {
+            while self.start[k] > x {
+                k -= 1;
+            }
+            line[x - pad] = parabola(x, self.owner[k]).min(FAR);
         }
-        k += 1;
-        v[k] = q;
-        z[k] = s;
-        z[k + 1] = f64::INFINITY;
     }
-    let mut out = vec![0f64; n];
-    k = 0;
-    for (q, o) in out.iter_mut().enumerate() {
-        while z[k + 1] < q as f64 {
-            k += 1;
-        }
-        let dq = q as f64 - v[k] as f64;
-        *o = dq * dq + f[v[k]];
-    }
-    out
 }
 
 #[cfg(test)]
@@ -230,6 +247,20 @@ mod tests {
             }
         }
         out
+    }
+
+    /// Longer lines than above, where the envelope holds many parabolas and drops some.
+    #[test]
+    fn euclidean_matches_brute_force_on_larger_grids() {
+        for (i, dims) in [[23, 17, 9], [5, 31, 14]].into_iter().enumerate() {
+            for density in [0.02, 0.15, 0.6] {
+                for border in [true, false] {
+                    let set = random_set(dims, 7 + i as u64, density);
+                    let eub = brute(&set, border, |d| d.iter().map(|v| (v * v) as u64).sum());
+                    assert_eq!(euclidean_squared(&set, border).data, eub, "{dims:?} {density} {border}");
+                }
+            }
+        }
     }
 
     #[test]
