@@ -40,30 +40,35 @@ pub fn portals(l: &Labelling) -> Vec<Portal> {
     let [nx, ny, _] = spec.dims;
     let labels = &l.labels.data;
     let mut acc: BTreeMap<(u32, u32), FaceSums> = BTreeMap::new();
-    for i in 0..spec.len() {
-        let a = labels[i];
-        if a == NO_LABEL {
-            continue;
-        }
-        let [x, y, z] = spec.coords(i);
-        let c = spec.center(x, y, z);
-        // Each face once: towards +x, +y, +z.
-        let [nx_, ny_, nz_] = spec.dims;
-        let ahead = [(x + 1 < nx_, 1), (y + 1 < ny_, nx), (z + 1 < nz_, nx * ny)];
-        for (axis, j) in ahead.iter().enumerate().filter(|(_, (inside, _))| *inside).map(|(k, (_, step))| (k, i + step))
-        {
-            let b = labels[j];
-            if b == NO_LABEL || b == a {
-                continue;
+    let [_, _, nz] = spec.dims;
+    // Voxel by voxel in index order; coordinates follow the loops, and a voxel's centre is
+    // computed only where it has a portal face (few do).
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let i = spec.index(x, y, z);
+                let a = labels[i];
+                if a == NO_LABEL {
+                    continue;
+                }
+                // Each face once: towards +x, +y, +z.
+                let ahead = [(x + 1 < nx, 1), (y + 1 < ny, nx), (z + 1 < nz, nx * ny)];
+                for (axis, &(inside, step)) in ahead.iter().enumerate() {
+                    let b = if inside { labels[i + step] } else { NO_LABEL };
+                    if b == NO_LABEL || b == a {
+                        continue;
+                    }
+                    let c = spec.center(x, y, z);
+                    let (from, to, sign) = if a < b { (a, b, 1.0) } else { (b, a, -1.0) };
+                    let e = acc.entry((from, to)).or_default();
+                    e.faces += 1;
+                    e.squares.push((i, axis as u8));
+                    for (k, sum) in e.centres.iter_mut().enumerate() {
+                        *sum += c[k] + if k == axis { 0.5 * spec.voxel } else { 0.0 };
+                    }
+                    e.normals[axis] += sign;
+                }
             }
-            let (from, to, sign) = if a < b { (a, b, 1.0) } else { (b, a, -1.0) };
-            let e = acc.entry((from, to)).or_default();
-            e.faces += 1;
-            e.squares.push((i, axis as u8));
-            for (k, sum) in e.centres.iter_mut().enumerate() {
-                *sum += c[k] + if k == axis { 0.5 * spec.voxel } else { 0.0 };
-            }
-            e.normals[axis] += sign;
         }
     }
     let face_area = spec.voxel * spec.voxel;
