@@ -174,6 +174,56 @@ impl BitSet {
     }
 }
 
+/// Scanline flood fill of a grid of dimensions `dims` (x fastest): sets `marks[i] = mark`
+/// for every voxel joined to one of `seeds` by 6-paths of voxels that are `open` and still
+/// `unmarked` (seeds that are not are passed over). Each voxel taken grows to
+/// its whole run along x, and the rows beside the run (±y, ±z) are scanned for runs still
+/// to take, one seed each: rows are read in order and few seeds are stacked, so large
+/// regions fill at memory speed (the classroom box at 430: a 14 M-voxel shell of air 0.50 →
+/// 0.10 s, and the opening's root regions 0.45 → 0.03 s, against a voxel-by-voxel search
+/// with a division per neighbour).
+pub(crate) fn scanline_fill<T: Copy + PartialEq>(
+    dims: [usize; 3],
+    marks: &mut [T],
+    [unmarked, mark]: [T; 2],
+    open: impl Fn(usize) -> bool,
+    mut seeds: Vec<usize>,
+) {
+    let [w, h, d] = dims;
+    let fresh = |marks: &[T], j: usize| marks[j] == unmarked && open(j);
+    while let Some(i) = seeds.pop() {
+        if !fresh(marks, i) {
+            continue;
+        }
+        let row = i - i % w;
+        let (mut a, mut b) = (i, i + 1);
+        while a > row && fresh(marks, a - 1) {
+            a -= 1;
+        }
+        while b < row + w && fresh(marks, b) {
+            b += 1;
+        }
+        marks[a..b].fill(mark);
+        let (y, z) = ((i / w) % h, i / (w * h));
+        let beside = [
+            (y > 0, -(w as isize)),
+            (y + 1 < h, w as isize),
+            (z > 0, -((w * h) as isize)),
+            (z + 1 < d, (w * h) as isize),
+        ];
+        for (_, step) in beside.into_iter().filter(|&(inside, _)| inside) {
+            let mut in_run = false;
+            for j in (a..b).map(|j| j.wrapping_add_signed(step)) {
+                let take = fresh(marks, j);
+                if take && !in_run {
+                    seeds.push(j);
+                }
+                in_run = take;
+            }
+        }
+    }
+}
+
 /// The six axis neighbours of cell `i` of an array with strides `[1, sy, sz]`, in the order
 /// −x, +x, −y, +y, −z, +z (as [`neighbours6`]); the array's padding keeps them inside it.
 #[inline]

@@ -2,9 +2,7 @@
 //! Region roots are 6-connected sets of forest roots of equal opening; every other voxel
 //! takes the label of the root its forest chain reaches.
 
-use std::collections::VecDeque;
-
-use crate::grid::{neighbours6, Grid};
+use crate::grid::{scanline_fill, Grid};
 use crate::opening::Opening;
 
 /// Label of voxels outside the set.
@@ -24,22 +22,13 @@ pub fn opening_forest_labelling(o: &Opening) -> Labelling {
     let mut labels = vec![NO_LABEL; n];
     let is_root = |i: usize| radius[i] > 0 && centre[i] as usize == i;
     let mut count = 0;
-    let mut queue = VecDeque::new();
     for seed in 0..n {
         if !is_root(seed) || labels[seed] != NO_LABEL {
             continue;
         }
         count += 1;
-        labels[seed] = count;
-        queue.push_back(seed);
-        while let Some(i) = queue.pop_front() {
-            for j in neighbours6(spec.dims, i) {
-                if labels[j] == NO_LABEL && is_root(j) && radius[j] == radius[seed] {
-                    labels[j] = count;
-                    queue.push_back(j);
-                }
-            }
-        }
+        let r = radius[seed];
+        scanline_fill(spec.dims, &mut labels, [NO_LABEL, count], |j| is_root(j) && radius[j] == r, vec![seed]);
     }
     // Along a chain x → f(x) → … the opening strictly grows until a root, so chains end.
     let mut chain = Vec::new();
@@ -64,8 +53,10 @@ pub fn opening_forest_labelling(o: &Opening) -> Labelling {
 mod tests {
     use super::*;
     use crate::distance::chessboard;
+    use crate::grid::neighbours6;
     use crate::opening::opening;
     use crate::testing::random_set;
+    use std::collections::VecDeque;
 
     /// Every voxel of the set is labelled, its label's region contains a root, and the
     /// regions are 6-connected.

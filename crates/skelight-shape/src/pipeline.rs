@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::complex::Complex;
 use crate::distance::{chessboard, euclidean_squared};
-use crate::grid::{Grid, GridError, GridSpec};
+use crate::grid::{scanline_fill, Grid, GridError, GridSpec};
 use crate::labeling::{opening_forest_labelling, Labelling};
 use crate::mapping::NodeMapping;
 use crate::opening::opening;
@@ -207,58 +207,24 @@ fn nearest_empty_voxel(empty: &Grid<bool>, anchor: &Anchor) -> Option<usize> {
     best.map(|(_, i)| i)
 }
 
-/// The empty voxels joined to the grid's border by 6-paths of empty voxels, by a scanline
-/// fill: each seed grows to its whole run of empty voxels along x, and the rows beside the
-/// run (±y, ±z) are scanned for runs not reached yet, one seed each. Rows are read in order
-/// and few seeds are stacked, so a large shell of air is filled at memory speed (classroom
-/// box 430: 0.50 s voxel by voxel, with a division per neighbour).
+/// The empty voxels joined to the grid's border by 6-paths of empty voxels.
 fn reached_from_border(empty: &Grid<bool>) -> Vec<bool> {
     let [w, h, d] = empty.spec.dims;
     let open = &empty.data[..];
     let mut reached = vec![false; open.len()];
     // Every voxel of a border row, and the two ends of every other row.
-    let mut stack: Vec<usize> = Vec::new();
+    let mut seeds: Vec<usize> = Vec::new();
     for z in 0..d {
         for y in 0..h {
             let row = (z * h + y) * w;
             if y == 0 || z == 0 || y + 1 == h || z + 1 == d {
-                stack.extend((row..row + w).filter(|&i| open[i]));
+                seeds.extend((row..row + w).filter(|&i| open[i]));
             } else {
-                stack.extend([row, row + w - 1].into_iter().filter(|&i| open[i]));
+                seeds.extend([row, row + w - 1].into_iter().filter(|&i| open[i]));
             }
         }
     }
-    while let Some(i) = stack.pop() {
-        if reached[i] {
-            continue;
-        }
-        let row = i - i % w;
-        let (mut a, mut b) = (i, i + 1);
-        while a > row && open[a - 1] && !reached[a - 1] {
-            a -= 1;
-        }
-        while b < row + w && open[b] && !reached[b] {
-            b += 1;
-        }
-        reached[a..b].fill(true);
-        let (y, z) = ((i / w) % h, i / (w * h));
-        let beside = [
-            (y > 0, -(w as isize)),
-            (y + 1 < h, w as isize),
-            (z > 0, -((w * h) as isize)),
-            (z + 1 < d, (w * h) as isize),
-        ];
-        for (_, step) in beside.into_iter().filter(|&(inside, _)| inside) {
-            let mut in_run = false;
-            for j in (a..b).map(|j| j.wrapping_add_signed(step)) {
-                let fresh = open[j] && !reached[j];
-                if fresh && !in_run {
-                    stack.push(j);
-                }
-                in_run = fresh;
-            }
-        }
-    }
+    scanline_fill(empty.spec.dims, &mut reached, [false, true], |i| open[i], seeds);
     reached
 }
 
