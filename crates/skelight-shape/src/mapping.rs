@@ -6,8 +6,6 @@
 //! node on its own side. A surface point lies in a scene voxel, which has no label; it
 //! takes the label of the empty neighbour on the side it is seen from (eq. 151–155).
 
-use std::collections::VecDeque;
-
 use crate::grid::{axis_neighbours, Grid, GridSpec, Padded};
 use crate::skeleton::SkeletonGraph;
 
@@ -22,30 +20,41 @@ pub struct NodeMapping {
 impl NodeMapping {
     /// Alg. 5 on the empty space `empty` for the nodes of `graph`.
     pub fn new(graph: &SkeletonGraph, empty: &Grid<bool>) -> NodeMapping {
-        // A breadth-first flood from every node's voxel at once, on padded grids so that
-        // neighbours are fixed offsets (the padding is never empty, so never entered).
+        // A breadth-first flood from every node's voxel at once, on a padded grid so that
+        // neighbours are fixed offsets. One array says both whether a cell may be entered
+        // and which node holds it (BLOCKED for scene voxels and the padding), so each
+        // neighbour costs one read; the flood goes level by level through two lists of
+        // indices, in the order a FIFO queue would (u32: `check_memory` refuses grids far
+        // below 2³² cells).
+        const BLOCKED: u32 = u32::MAX;
         let spec = empty.spec;
         let layout = Padded::new(spec.dims);
         let strides = layout.strides();
-        let inside = layout.pad(&empty.data, false, |e| e);
-        let mut label = vec![0u32; layout.len()];
-        let mut queue = VecDeque::new();
+        let mut label = layout.pad(&empty.data, BLOCKED, |e| if e { 0 } else { BLOCKED });
+        let mut level: Vec<u32> = Vec::new();
         for (l, node) in graph.nodes.iter().enumerate() {
             let [x, y, z] = spec.coords(node.voxel);
             let i = layout.index(x, y, z);
             if label[i] == 0 {
                 label[i] = l as u32 + 1;
-                queue.push_back(i);
+                level.push(i as u32);
             }
         }
-        while let Some(i) = queue.pop_front() {
-            for j in axis_neighbours(i, strides) {
-                if inside[j] && label[j] == 0 {
-                    label[j] = label[i];
-                    queue.push_back(j);
+        let mut next: Vec<u32> = Vec::new();
+        while !level.is_empty() {
+            for &i in &level {
+                let i = i as usize;
+                for j in axis_neighbours(i, strides) {
+                    if label[j] == 0 {
+                        label[j] = label[i];
+                        next.push(j as u32);
+                    }
                 }
             }
+            std::mem::swap(&mut level, &mut next);
+            next.clear();
         }
+        label.iter_mut().filter(|l| **l == BLOCKED).for_each(|l| *l = 0);
         let grid = Grid { spec, data: layout.unpad(&label) };
         NodeMapping { grid }
     }
