@@ -305,14 +305,12 @@ fn collapse_in_slabs(
                     }
                 },
             );
-        } else {
-            // Too few to be worth waking the other threads.
-            for l in &mut lists {
-                l.border.append(&mut l.pairs);
-            }
         }
+        // What the slabs left (near their edges), or the whole layer if it had too few
+        // pairs to be worth waking the other threads.
         for l in &mut lists {
             border.append(&mut l.border);
+            border.append(&mut l.pairs);
         }
         let mut whole = Removal { offset: 0, state: &mut state, death: dates.as_deref_mut().map(|d| &mut d.death[..]) };
         for pair in border.drain(..) {

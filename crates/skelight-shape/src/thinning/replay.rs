@@ -16,7 +16,7 @@
 //! kept as in [`collapse_from`](super::collapse_from), with coface counts updated when a
 //! coface outside the zone dies at its date.
 
-use super::{Dates, Neighbours, Pair, ALIVE, COUNT, KEPT_BIAS, NEVER, TYPE_SHIFT};
+use super::{Date, Dates, Neighbours, Pair, ALIVE, COUNT, KEPT_BIAS, NEVER, TYPE_SHIFT};
 use crate::complex::Complex;
 use crate::grid::BitSet;
 use rayon::prelude::*;
@@ -53,7 +53,7 @@ pub(super) fn replay_within(x: &mut Complex, dates: &Dates, keep: &[bool], most:
 /// The constrained collapse inside the zone.
 struct Replay<'a> {
     x: &'a Complex,
-    death: &'a [u16],
+    death: &'a [Date],
     keep: &'a [bool],
     steps: Neighbours,
     /// Cell offsets within [`REACH`], as coordinate steps.
