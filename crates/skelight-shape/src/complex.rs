@@ -104,7 +104,15 @@ impl Complex {
     /// Dimension of the face at `i`: how many of its coordinates are odd.
     #[inline]
     pub fn dim(&self, i: usize) -> usize {
-        self.coords(i).iter().map(|c| c & 1).sum()
+        self.face_type(i).count_ones() as usize
+    }
+
+    /// Type of the face at `i`: bit a set where its coordinate along axis a is odd (the
+    /// axes it spans).
+    #[inline]
+    pub fn face_type(&self, i: usize) -> u8 {
+        let p = self.coords(i);
+        (p[0] & 1 | (p[1] & 1) << 1 | (p[2] & 1) << 2) as u8
     }
 
     #[inline]

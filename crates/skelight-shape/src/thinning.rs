@@ -216,7 +216,7 @@ impl Removal<'_> {
                 // t lost a coface: it may be free now.
                 let t = face.wrapping_add_signed(offset);
                 state[t] -= 1;
-                if state[t] & (ALIVE | COUNT) == ALIVE | 1 {
+                if is_free(state[t]) {
                     queue(t + self.offset);
                 }
             }
@@ -257,7 +257,7 @@ fn collapse_in_slabs(
             }
         }
         None => lists.par_iter_mut().enumerate().for_each(|(s, l)| {
-            let free = (slabs.bounds[s]..slabs.bounds[s + 1]).filter(|&i| state[i] & (ALIVE | COUNT) == ALIVE | 1);
+            let free = (slabs.bounds[s]..slabs.bounds[s + 1]).filter(|&i| is_free(state[i]));
             l.candidates.extend(free);
         }),
     };
@@ -329,6 +329,12 @@ const COUNT: u8 = 0b1111;
 const KEPT_BIAS: u8 = 8;
 const ALIVE: u8 = 1 << 4;
 const TYPE_SHIFT: u32 = 5;
+
+/// Whether a face with state byte `s` is free: in the complex, not kept, one coface left.
+#[inline]
+fn is_free(s: u8) -> bool {
+    s & (ALIVE | COUNT) == ALIVE | 1
+}
 
 /// The state byte of every cell of `x` (see [`COUNT`]), built plane by plane in parallel.
 /// Along a row of the doubled grid the y and z parities are fixed and the x parity
@@ -431,13 +437,17 @@ impl Neighbours {
     /// g is free (in the complex, not kept, one coface f left) and is f's first free facet.
     #[inline]
     fn layer_pair(&self, state: impl Fn(usize) -> u8, g: usize) -> Option<Pair> {
-        let is_free = |t: usize| state(t) & (ALIVE | COUNT) == ALIVE | 1;
-        if !is_free(g) {
+        if !is_free(state(g)) {
             return None;
         }
         let f = self.cofaces(state(g)).iter().map(|&o| g.wrapping_add_signed(o)).find(|&f| state(f) & ALIVE != 0)?;
-        let first = self.facets(state(f)).iter().map(|&o| f.wrapping_add_signed(o)).find(|&t| is_free(t));
-        (first == Some(g)).then_some((f, g))
+        (self.first_free_facet(&state, f) == Some(g)).then_some((f, g))
+    }
+
+    /// The facet face `f` goes with if it has a free one: its first in the sub-step order.
+    #[inline]
+    fn first_free_facet(&self, state: &impl Fn(usize) -> u8, f: usize) -> Option<usize> {
+        self.facets(state(f)).iter().map(|&o| f.wrapping_add_signed(o)).find(|&t| is_free(state(t)))
     }
 }
 
@@ -655,8 +665,7 @@ pub fn pierce_surfaces(x: &mut Complex) -> Vec<usize> {
             continue;
         }
         pierced.push(start);
-        let p = x.coords(start);
-        queue.push_back((start, p[0] & 1 | (p[1] & 1) << 1 | (p[2] & 1) << 2));
+        queue.push_back((start, usize::from(x.face_type(start))));
         while let Some((sq, ty)) = queue.pop_front() {
             for a in (0..3).filter(|a| ty >> a & 1 == 1) {
                 let edge_ty = ty ^ 1 << a;

@@ -16,7 +16,7 @@
 //! kept as in [`collapse_from`](super::collapse_from), with coface counts updated when a
 //! coface outside the zone dies at its date.
 
-use super::{Date, Dates, Neighbours, Pair, ALIVE, COUNT, KEPT_BIAS, NEVER, TYPE_SHIFT};
+use super::{is_free, Date, Dates, Neighbours, Pair, ALIVE, COUNT, KEPT_BIAS, NEVER, TYPE_SHIFT};
 use crate::complex::Complex;
 use crate::grid::BitSet;
 use rayon::prelude::*;
@@ -110,15 +110,27 @@ impl<'a> Replay<'a> {
         }
     }
 
-    /// Type bits of face `i` (bit a set where its coordinate along a is odd).
-    fn type_of(&self, i: usize) -> u8 {
-        let p = self.x.coords(i);
-        (p[0] & 1 | (p[1] & 1) << 1 | (p[2] & 1) << 2) as u8
-    }
-
     /// Whether face `i` is alive at the start of layer `t` in the dated run.
     fn dated_alive(&self, i: usize, t: u32) -> bool {
         self.x.cells[i] && u32::from(self.death[i]) >= t
+    }
+
+    /// Whether face `i` is alive at the start of layer `t` of the constrained run (the
+    /// zone's states being those of layer `t`).
+    fn alive_at(&self, i: usize, t: u32) -> bool {
+        if self.zone.contains(i) {
+            self.state[i] & ALIVE != 0
+        } else {
+            self.dated_alive(i, t)
+        }
+    }
+
+    /// The alive cofaces of face `i`, of type `ty`, at the start of layer `t` (as
+    /// [`Replay::alive_at`]), plus [`KEPT_BIAS`] if it is kept: the low bits of its state.
+    fn count_at(&self, i: usize, ty: u8, t: u32) -> u8 {
+        let cofaces = self.steps.cofaces(ty << TYPE_SHIFT);
+        let alive = cofaces.iter().filter(|&&o| self.alive_at(i.wrapping_add_signed(o), t)).count();
+        alive as u8 + KEPT_BIAS * u8::from(self.keep[i])
     }
 
     /// The state byte of face `i` at the start of layer `t` of the constrained run.
@@ -126,18 +138,12 @@ impl<'a> Replay<'a> {
         if self.zone.contains(i) {
             return self.state[i];
         }
-        // Outside the zone the face and its cofaces are as in the dated run.
+        // Outside the zone the face is as in the dated run.
         if !self.dated_alive(i, t) {
             return 0;
         }
-        let ty = self.type_of(i);
-        let count = self
-            .steps
-            .cofaces(ty << TYPE_SHIFT)
-            .iter()
-            .filter(|&&o| self.dated_alive(i.wrapping_add_signed(o), t))
-            .count();
-        ALIVE | ty << TYPE_SHIFT | (count as u8 + if self.keep[i] { KEPT_BIAS } else { 0 })
+        let ty = self.x.face_type(i);
+        ALIVE | ty << TYPE_SHIFT | self.count_at(i, ty, t)
     }
 
     /// Adds the cells within [`REACH`] of each of `seeds` to the zone, with their states at
@@ -165,30 +171,25 @@ impl<'a> Replay<'a> {
         for k in first..self.members.len() {
             let j = self.members[k];
             let alive = self.dated_alive(j, t);
-            self.state[j] = (u8::from(alive) * ALIVE) | (self.type_of(j) << TYPE_SHIFT);
+            self.state[j] = (u8::from(alive) * ALIVE) | (self.x.face_type(j) << TYPE_SHIFT);
         }
         for k in first..self.members.len() {
             let j = self.members[k];
             if self.state[j] & ALIVE == 0 {
                 continue;
             }
-            let mut count = 0;
+            self.state[j] += self.count_at(j, self.state[j] >> TYPE_SHIFT, t);
+            // Cofaces outside the zone die at their dates; j is told then.
             for &o in self.steps.cofaces(self.state[j]) {
                 let c = j.wrapping_add_signed(o);
-                if self.zone.contains(c) {
-                    count += u8::from(self.state[c] & ALIVE != 0);
-                } else if self.dated_alive(c, t) {
-                    count += 1;
-                    if self.death[c] != NEVER {
-                        self.loses[self.death[c] as usize].push((j, c));
-                    }
+                if !self.zone.contains(c) && self.dated_alive(c, t) && self.death[c] != NEVER {
+                    self.loses[self.death[c] as usize].push((j, c));
                 }
             }
-            self.state[j] += count + if self.keep[j] { KEPT_BIAS } else { 0 };
             if self.death[j] != NEVER {
                 self.dies[self.death[j] as usize].push(j);
             }
-            if self.state[j] & (ALIVE | COUNT) == ALIVE | 1 {
+            if is_free(self.state[j]) {
                 free.push(j);
             }
         }
@@ -208,7 +209,7 @@ impl<'a> Replay<'a> {
     fn lose_coface(&mut self, h: usize, free: &mut Vec<usize>) {
         if self.zone.contains(h) {
             self.state[h] -= 1;
-            if self.state[h] & (ALIVE | COUNT) == ALIVE | 1 {
+            if is_free(self.state[h]) {
                 free.push(h);
             }
         }
@@ -243,12 +244,7 @@ impl<'a> Replay<'a> {
                 if s & (ALIVE | COUNT) != ALIVE {
                     continue; // gone already, kept, or not maximal
                 }
-                let first_free = self
-                    .steps
-                    .facets(s)
-                    .iter()
-                    .map(|&o| f.wrapping_add_signed(o))
-                    .find(|&h| self.state_at(h, t) & (ALIVE | COUNT) == ALIVE | 1);
+                let first_free = self.steps.first_free_facet(&|i| self.state_at(i, t), f);
                 if let Some(h) = first_free.filter(|&h| !self.zone.contains(h)) {
                     pairs.push((f, h));
                 }
