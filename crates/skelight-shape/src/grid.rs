@@ -147,6 +147,26 @@ pub(crate) fn par_positions(len: usize, pred: impl Fn(usize) -> bool + Sync) -> 
         .collect()
 }
 
+/// The positions i where `flags[i]` and `pred(i)` hold, in increasing order: as
+/// [`par_positions`], reading the flags eight at a time and skipping those all false. For
+/// the few faces left in a large complex after thinning (door: 58 850 of 15.6 M cells,
+/// 10.8 ms with `par_positions`, 1.4 ms this way).
+pub(crate) fn par_flagged_positions(flags: &[bool], pred: impl Fn(usize) -> bool + Sync) -> Vec<usize> {
+    use rayon::prelude::*;
+    const BLOCK: usize = 1 << 16;
+    flags
+        .par_chunks(BLOCK)
+        .enumerate()
+        .flat_map_iter(|(b, block)| {
+            let (words, rest) = block.as_chunks::<8>();
+            let nonzero = words.iter().enumerate().filter(|(_, w)| u64::from_ne_bytes(w.map(u8::from)) != 0);
+            let candidates =
+                nonzero.flat_map(|(k, _)| 8 * k..8 * k + 8).chain(8 * words.len()..8 * words.len() + rest.len());
+            candidates.filter(|&i| block[i]).map(move |i| b * BLOCK + i).filter(|&i| pred(i)).collect::<Vec<_>>()
+        })
+        .collect()
+}
+
 /// A set of positions below a bound, one bit each: walks over a few faces of a large
 /// complex mark what they have seen here (the zeroed pages cost nothing until touched),
 /// faster than hashing and eight times smaller than a `Vec<bool>`.
@@ -314,6 +334,19 @@ pub fn neighbours6(dims: [usize; 3], i: usize) -> impl Iterator<Item = usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Flags read eight at a time give the positions a plain filter gives: sparse and dense
+    /// flags, lengths off the word and block sizes, a predicate that drops some.
+    #[test]
+    fn flagged_positions_are_those_of_a_filter() {
+        let mut r = crate::testing::Lcg(7);
+        for (len, density) in [(0, 0.5), (13, 0.5), (1 << 16, 0.001), ((1 << 17) + 5, 0.3), (200_003, 0.0001)] {
+            let flags: Vec<bool> = (0..len).map(|_| r.next() < density).collect();
+            let pred = |i: usize| i % 3 != 1;
+            let expected: Vec<usize> = (0..len).filter(|&i| flags[i] && pred(i)).collect();
+            assert_eq!(par_flagged_positions(&flags, pred), expected, "{len} flags");
+        }
+    }
 
     #[test]
     fn bounds_become_a_centred_grid_with_the_requested_longest_side() {

@@ -5,7 +5,7 @@
 //! [`crate::mapping`].
 
 use crate::complex::Complex;
-use crate::grid::{par_positions, Grid, GridSpec};
+use crate::grid::{par_flagged_positions, Grid, GridSpec};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Node {
@@ -29,10 +29,9 @@ impl SkeletonGraph {
     pub fn from_complex(x: &Complex, spec: &GridSpec, empty: &Grid<bool>, edt: &Grid<u64>) -> SkeletonGraph {
         // A skeleton keeps few faces of a large array: find them in parallel, then look nodes
         // up by face in the sorted list instead of a node array as large as the complex.
-        let n = x.cells.len();
         let mut graph = SkeletonGraph::default();
         let mut node_at: Vec<(usize, u32)> = Vec::new();
-        for i in par_positions(n, |i| x.cells[i] && x.dim(i) == 0) {
+        for i in par_flagged_positions(&x.cells, |i| x.dim(i) == 0) {
             // The empty voxel around the vertex farthest from the scene.
             let best = x.voxels_around(i).filter(|&v| empty.data[v]).map(|v| (edt.data[v], v)).reduce(|a, b| {
                 if b.0 > a.0 {
@@ -48,7 +47,7 @@ impl SkeletonGraph {
             graph.nodes.push(Node { position, voxel, radius: (d2 as f64).sqrt() * spec.voxel });
         }
         let node_of = |f: usize| node_at.binary_search_by_key(&f, |&(face, _)| face).ok().map(|k| node_at[k].1);
-        for e in par_positions(n, |i| x.cells[i] && x.dim(i) == 1) {
+        for e in par_flagged_positions(&x.cells, |i| x.dim(i) == 1) {
             let ends: Vec<Option<u32>> = x.facets(e).map(|f| node_of(f.0)).collect();
             if let [Some(a), Some(b)] = ends[..] {
                 graph.edges.push([a, b]);

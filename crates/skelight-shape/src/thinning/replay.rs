@@ -80,7 +80,7 @@ impl<'a> Replay<'a> {
         let death = &dates.death[..];
         let last = death.par_iter().filter(|&&d| d != NEVER).max().copied().unwrap_or(0) as usize;
         let mut kept_dying = vec![Vec::new(); last + 2];
-        for i in crate::grid::par_positions(n, |i| keep[i] && death[i] != NEVER) {
+        for i in crate::grid::par_flagged_positions(keep, |i| death[i] != NEVER) {
             kept_dying[death[i] as usize].push(i);
         }
         let r = REACH;
