@@ -587,13 +587,14 @@ fn pierce_and_thin(x: &mut Complex, keep: &[bool]) {
 /// their voxels only ([`l1_opening_at`]), not over the whole grid.
 pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constraint: EdgeConstraint) -> Vec<bool> {
     let [_, sy, sz] = x.strides();
-    let [nx, ny, nz] = x.dims;
+    let [_, ny, nz] = x.dims;
     let [w, h, d] = distance.spec.dims;
     // (edge, lifespan, bound without DC) of the edges that may pass, plane by plane.
     let planes: Vec<Vec<(usize, i64, i64)>> = (0..nz)
         .into_par_iter()
         .map(|z| {
             let mut may_pass = Vec::new();
+            let (mut lifespans, mut column_max, mut edge_max) = (Vec::new(), Vec::new(), Vec::new());
             for y in 0..ny {
                 if y & 1 == 1 && z & 1 == 1 {
                     continue; // squares and voxels only
@@ -609,50 +610,70 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 } else {
                     [sy, sz]
                 };
-                let mut rows = [0; 4];
-                let mut n_rows = 0;
-                for vz in voxel_span(z, d) {
-                    for vy in voxel_span(y, h) {
-                        rows[n_rows] = (vz * h + vy) * w;
-                        n_rows += 1;
+                // D of each edge under the thesis' bound (0 under the released code's): its
+                // largest value over the voxels around it. Columns take the largest over the
+                // row's one to four voxel rows, with a 0 at each end; an edge at odd x lies in
+                // column x/2, one at even x between columns x/2 − 1 and x/2.
+                column_max.clear();
+                column_max.resize(w + 2, 0);
+                if constraint == EdgeConstraint::Thesis {
+                    for vz in voxel_span(z, d) {
+                        for vy in voxel_span(y, h) {
+                            let row = &distance.data[(vz * h + vy) * w..][..w];
+                            for (m, &v) in column_max[1..=w].iter_mut().zip(row) {
+                                *m = (*m).max(v);
+                            }
+                        }
                     }
                 }
-                for px in (first_x..nx).step_by(2) {
-                    let e = (z + 1) * sz + (y + 1) * sy + px + 1;
-                    if !x.cells[e] {
-                        continue;
-                    }
-                    let death = dates.death[e];
-                    if death == NEVER {
-                        continue; // an infinite lifespan (see `curvilinear_skeleton`)
-                    }
-                    // Def. 6.2 (`Dates::birth`) with the row's fixed coface offsets, then Def. 6.3.
-                    let [a, b] = coface_steps;
-                    let birth = dates.last_death(x, [e - a, e + a, e - b, e + b]);
-                    let (birth, lifespan) = (i64::from(birth), i64::from(death - birth));
-                    // The bound is never negative: DC ≥ 0, and birth ≥ D, as every voxel v
-                    // around the edge dies at D₁(v) (`voxels_die_at_their_l1_distance`) and
-                    // its squares on the edge, cofaces of the edge, die no earlier than v. So
-                    // most edges, of lifespan 0, are skipped before the map is read.
-                    if lifespan == 0 {
-                        continue;
-                    }
-                    let bound = match constraint {
-                        EdgeConstraint::Thesis => {
-                            // D of an edge: its largest value over the voxels around it.
-                            let mut dmax = 0;
-                            for &row in &rows[..n_rows] {
-                                for vx in voxel_span(px, w) {
-                                    dmax = dmax.max(distance.data[row + vx]);
-                                }
+                edge_max.clear();
+                if first_x == 1 {
+                    edge_max.extend_from_slice(&column_max[1..=w]);
+                } else {
+                    edge_max.extend(column_max.windows(2).map(|pair| pair[0].max(pair[1])));
+                }
+                // The row's edges, every other cell from `first`, and their lifespans (Def.
+                // 6.2–6.3) where Alg. 3's test without DC passes, 0 elsewhere: DC ≥ 0 only
+                // raises the bound, and in integers lifespan > birth − D is lifespan + D >
+                // birth. Cells outside the complex have no death date, and a face dies no
+                // earlier than its cofaces, so an edge of finite death has its birth at the
+                // latest date among its four coface cells (0 if none has one): no complex
+                // flags are read, and the pass vectorises. Edges never removed have an
+                // infinite lifespan (see `curvilinear_skeleton`) and are left out.
+                //
+                // Lifespans of 0 are left out too, as the bound is never negative: DC ≥ 0,
+                // and birth ≥ D, as every voxel v around the edge dies at D₁(v)
+                // (`voxels_die_at_their_l1_distance`) and its squares on the edge, cofaces of
+                // the edge, die no earlier than v.
+                let first = (z + 1) * sz + (y + 1) * sy + first_x + 1;
+                let count = edge_max.len();
+                let every_other = |offset: isize| {
+                    let cells = &dates.death[first.wrapping_add_signed(offset)..][..2 * count];
+                    cells.as_chunks::<2>().0.iter().map(|pair| pair[0])
+                };
+                let [a, b] = coface_steps.map(|s| s as isize);
+                let dated = |d: Date| d.wrapping_add(1); // NEVER to 0, the rest in order
+                lifespans.clear();
+                lifespans.extend(
+                    every_other(0)
+                        .zip(every_other(-a).zip(every_other(a)))
+                        .zip(every_other(-b).zip(every_other(b)))
+                        .zip(&edge_max)
+                        .map(|(((death, (c0, c1)), (c2, c3)), &dmax)| {
+                            let birth = dated(c0).max(dated(c1)).max(dated(c2)).max(dated(c3)).saturating_sub(1);
+                            let lifespan = death.wrapping_sub(birth);
+                            let may_pass = death != NEVER && u32::from(lifespan) + dmax > u32::from(birth);
+                            if may_pass {
+                                lifespan
+                            } else {
+                                0
                             }
-                            birth - i64::from(dmax)
-                        }
-                        EdgeConstraint::ReleasedCode => birth,
-                    };
-                    if lifespan > bound {
-                        may_pass.push((e, lifespan, bound));
-                    }
+                        }),
+                );
+                for (k, &lifespan) in lifespans.iter().enumerate().filter(|(_, &l)| l != 0) {
+                    let e = first + 2 * k;
+                    let birth = i64::from(dates.death[e] - lifespan);
+                    may_pass.push((e, i64::from(lifespan), birth - i64::from(edge_max[k])));
                 }
             }
             may_pass
