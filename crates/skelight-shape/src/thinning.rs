@@ -30,8 +30,11 @@ pub const MAX_DATED_LAYERS: u32 = NEVER as u32 - 1;
 
 /// Death dates of every face under an unconstrained collapse (Def. 6.1), from which the
 /// birth dates follow (Def. 6.2, [`Dates::birth`]).
+#[derive(Default)]
 pub struct Dates {
     pub death: Vec<Date>,
+    /// The latest death date (the number of layers), 0 if nothing was removed.
+    pub last: Date,
 }
 
 impl Dates {
@@ -323,6 +326,9 @@ fn collapse_in_slabs(
             whole.remove(&steps, pair, date, |t| lists[slabs.of(t)].candidates.push(t));
         }
     }
+    if let Some(d) = dates {
+        d.last = layer as Date;
+    }
     (layer, state)
 }
 
@@ -506,7 +512,7 @@ pub fn curvilinear_skeleton(
 /// The dates of the unconstrained collapse of `x`, if it ends within `max_layers` layers
 /// (at most [`MAX_DATED_LAYERS`]).
 fn dated_collapse(x: &Complex, max_layers: u32) -> Result<Dates, TooManyLayers> {
-    let mut dates = Dates { death: Vec::new() };
+    let mut dates = Dates::default();
     let max_layers = max_layers.min(MAX_DATED_LAYERS);
     // Only the dates are wanted: the collapsed complex itself is not built.
     let (layers, _) = collapse_in_slabs(x, initial_state(x, None), max_layers, Some(&mut dates), None, &Slabs::new(x));
@@ -847,7 +853,7 @@ mod tests {
                 .collect();
             for keep in [None, Some(&keep[..])] {
                 let run = |count: usize| {
-                    let mut d = Dates { death: Vec::new() };
+                    let mut d = Dates::default();
                     let (layers, state) = collapse_in_slabs(
                         &x,
                         initial_state(&x, keep),
@@ -921,7 +927,7 @@ mod tests {
                 .map(|i| x.cells[i] && i % 5 == 0 && x.coords(i).iter().all(|c| c % 2 == 0))
                 .collect();
             for keep in [vec![false; x.cells.len()], kept] {
-                let mut dates = Dates { death: Vec::new() };
+                let mut dates = Dates::default();
                 let mut fast = x.clone();
                 let layers = collapse_from(&mut fast, Some(&keep), u32::MAX, Some(&mut dates), None);
                 let mut slow = x.clone();
@@ -956,7 +962,7 @@ mod tests {
     fn dates_follow_their_definitions() {
         let set = random_object([7, 7, 7], 3, 0.8);
         let x = Complex::from_voxels(&set);
-        let mut dates = Dates { death: Vec::new() };
+        let mut dates = Dates::default();
         par_dir_collapse(&mut x.clone(), None, u32::MAX, Some(&mut dates));
         // Def. 6.1 and 6.2 checked against collapses of λ layers.
         for layers in 0..6 {

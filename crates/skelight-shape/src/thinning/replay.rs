@@ -78,7 +78,7 @@ impl<'a> Replay<'a> {
     fn new(x: &'a Complex, dates: &'a Dates, keep: &'a [bool]) -> Replay<'a> {
         let n = x.cells.len();
         let death = &dates.death[..];
-        let last = death.par_iter().filter(|&&d| d != NEVER).max().copied().unwrap_or(0) as usize;
+        let last = usize::from(dates.last);
         let mut kept_dying = vec![Vec::new(); last + 2];
         for i in crate::grid::par_flagged_positions(keep, |i| death[i] != NEVER) {
             kept_dying[death[i] as usize].push(i);
