@@ -264,8 +264,15 @@ fn collapse_in_slabs(
             }
         }
         None => lists.par_iter_mut().enumerate().for_each(|(s, l)| {
-            let free = (slabs.bounds[s]..slabs.bounds[s + 1]).filter(|&i| is_free(state[i]));
-            l.candidates.extend(free);
+            // Few faces are free at the start (door: 1 in 85): blocks of states without one
+            // are passed over by one vectorised test.
+            let start = slabs.bounds[s];
+            for (b, block) in state[start..slabs.bounds[s + 1]].chunks(64).enumerate() {
+                if block.iter().fold(false, |any, &st| any | is_free(st)) {
+                    let free = block.iter().enumerate().filter(|(_, &st)| is_free(st));
+                    l.candidates.extend(free.map(|(i, _)| start + 64 * b + i));
+                }
+            }
         }),
     };
     let mut border: Vec<Pair> = Vec::new();
