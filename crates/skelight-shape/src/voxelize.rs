@@ -52,6 +52,9 @@ pub fn triangle_overlaps_box(t: &[V; 3], c: V, h: V) -> bool {
 /// (which tested up to 27 voxels for a triangle inside one).
 const BOUNDS_SLACK: f64 = 1e-6;
 
+/// Box tests from which a triangle's planes of voxels are tested in parallel.
+const LARGE_TRIANGLE_BOXES: usize = 1 << 14;
+
 /// Full voxels of the triangles; degenerate or non-finite triangles are skipped.
 pub fn voxelize(spec: &GridSpec, triangles: &[[V; 3]]) -> Grid<bool> {
     let full: Vec<AtomicBool> = (0..spec.len()).map(|_| AtomicBool::new(false)).collect();
@@ -75,7 +78,7 @@ pub fn voxelize(spec: &GridSpec, triangles: &[[V; 3]]) -> Grid<bool> {
             lo[i] = a.max(0.0) as usize;
             hi[i] = (b as usize).min(spec.dims[i] - 1);
         }
-        for z in lo[2]..=hi[2] {
+        let plane = |z: usize| {
             for y in lo[1]..=hi[1] {
                 for x in lo[0]..=hi[0] {
                     let i = spec.index(x, y, z);
@@ -84,6 +87,14 @@ pub fn voxelize(spec: &GridSpec, triangles: &[[V; 3]]) -> Grid<bool> {
                     }
                 }
             }
+        };
+        // A scene's few large triangles (walls, floors) hold most of the box tests; their
+        // planes are shared out, or one thread would test them alone.
+        let boxes = (0..3).map(|a| hi[a] + 1 - lo[a]).product::<usize>();
+        if boxes >= LARGE_TRIANGLE_BOXES {
+            (lo[2]..=hi[2]).into_par_iter().for_each(plane);
+        } else {
+            (lo[2]..=hi[2]).for_each(plane);
         }
     });
     Grid { spec: *spec, data: full.into_iter().map(AtomicBool::into_inner).collect() }
