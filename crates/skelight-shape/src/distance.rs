@@ -41,40 +41,79 @@ pub(crate) fn par_lines<T: Copy + Send + Sync>(
             let mut rows: Vec<&mut [T]> = plane.chunks_mut(nx).collect();
             columns(&mut rows, &mut Vec::with_capacity(ny));
         }),
-        _ => {
-            let mut by_y: Vec<Vec<&mut [T]>> = (0..ny).map(|_| Vec::with_capacity(nz)).collect();
-            for plane in data.chunks_mut(nx * ny) {
-                for (y, row) in plane.chunks_mut(nx).enumerate() {
-                    by_y[y].push(row);
-                }
-            }
-            by_y.into_par_iter().for_each(|mut rows| columns(&mut rows, &mut Vec::with_capacity(nz)));
+        _ => rows_by_y(data, dims).into_par_iter().for_each(|mut rows| columns(&mut rows, &mut Vec::with_capacity(nz))),
+    }
+}
+
+/// The rows of the grid grouped by y, each group in order along z: the lines along z of
+/// one group cross its rows.
+fn rows_by_y<T>(data: &mut [T], [nx, ny, nz]: [usize; 3]) -> Vec<Vec<&mut [T]>> {
+    let mut by_y: Vec<Vec<&mut [T]>> = (0..ny).map(|_| Vec::with_capacity(nz)).collect();
+    for plane in data.chunks_mut(nx * ny) {
+        for (y, row) in plane.chunks_mut(nx).enumerate() {
+            by_y[y].push(row);
         }
     }
+    by_y
 }
 
 fn init(set: &Grid<bool>) -> Vec<u32> {
     set.data.iter().map(|&inside| if inside { INF } else { 0 }).collect()
 }
 
-/// L1 distance: separable, one forward and one backward pass per axis.
+/// L1 distance: separable, one forward and one backward pass per axis. Along y and z the
+/// passes step whole rows at a time, each row the minimum of itself and the row before plus
+/// one, which vectorises over x (door: 11–17 → 4–6 ms, against copying every column out and
+/// back).
 pub fn l1(set: &Grid<bool>, border_is_outside: bool) -> Grid<u32> {
+    let [nx, ny, _] = set.spec.dims;
     let mut d = init(set);
     let border = if border_is_outside { 0 } else { INF };
-    for axis in 0..3 {
-        par_lines(&mut d, set.spec.dims, axis, |line| {
-            let mut prev = border;
-            for v in line.iter_mut() {
-                prev = (*v).min(prev.saturating_add(1));
-                *v = prev;
-            }
-            let mut prev = border;
-            for v in line.iter_mut().rev() {
-                prev = (*v).min(prev.saturating_add(1));
-                *v = prev;
-            }
-        });
+    if d.is_empty() {
+        return Grid { spec: set.spec, data: d };
     }
+    par_lines(&mut d, set.spec.dims, 0, |line| {
+        let mut prev = border;
+        for v in line.iter_mut() {
+            prev = (*v).min(prev.saturating_add(1));
+            *v = prev;
+        }
+        let mut prev = border;
+        for v in line.iter_mut().rev() {
+            prev = (*v).min(prev.saturating_add(1));
+            *v = prev;
+        }
+    });
+    // Rows of one plane (y) or of one y across the planes (z), in order along the axis.
+    let sweep = |rows: &mut [&mut [u32]]| {
+        let n = rows.len();
+        let step = |rows: &mut [&mut [u32]], from: usize, to: usize| {
+            let (from, to) = if from < to {
+                let (a, b) = rows.split_at_mut(to);
+                (&*a[from], &mut *b[0])
+            } else {
+                let (a, b) = rows.split_at_mut(from);
+                (&*b[0], &mut *a[to])
+            };
+            for (t, &f) in to.iter_mut().zip(from) {
+                *t = (*t).min(f + 1);
+            }
+        };
+        // The border lies before the first row and after the last.
+        for end in [0, n - 1] {
+            for v in rows[end].iter_mut() {
+                *v = (*v).min(border.saturating_add(1));
+            }
+        }
+        for i in 1..n {
+            step(rows, i - 1, i);
+        }
+        for i in (0..n - 1).rev() {
+            step(rows, i + 1, i);
+        }
+    };
+    d.par_chunks_mut(nx * ny).for_each(|plane| sweep(&mut plane.chunks_mut(nx).collect::<Vec<_>>()));
+    rows_by_y(&mut d, set.spec.dims).into_par_iter().for_each(|mut rows| sweep(&mut rows));
     Grid { spec: set.spec, data: d }
 }
 
