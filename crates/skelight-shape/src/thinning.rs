@@ -362,6 +362,13 @@ unsafe fn unchecked(state: &[u8], i: usize) -> u8 {
     unsafe { *state.get_unchecked(i) }
 }
 
+/// The state byte of a face of the complex of type `ty` (see [`TYPE_SHIFT`]) with
+/// `cofaces` cofaces in the complex, kept or not.
+#[inline(always)]
+fn face_state(ty: u8, cofaces: u8, kept: bool) -> u8 {
+    ALIVE | ty << TYPE_SHIFT | (cofaces + KEPT_BIAS * u8::from(kept))
+}
+
 /// Whether a face with state byte `s` is free: in the complex, not kept, one coface left.
 #[inline]
 fn is_free(s: u8) -> bool {
@@ -399,8 +406,7 @@ fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
                 let count = even_x * (u8::from(left[px]) + u8::from(right[px]))
                     + even_y * (u8::from(below[px]) + u8::from(above[px]))
                     + even_z * (u8::from(back[px]) + u8::from(front[px]));
-                let ty = ty_yz | (px & 1) as u8;
-                let face = ALIVE | ty << TYPE_SHIFT | (count + KEPT_BIAS * u8::from(kept[px]));
+                let face = face_state(ty_yz | (px & 1) as u8, count, kept[px]);
                 out[px] = u8::from(here[px]) * face;
             }
         }
@@ -579,8 +585,7 @@ fn pierce_and_thin(x: &mut Complex, keep: &[bool]) {
         // Cells off the list are outside the complex: state 0, as `initial_state` gives them.
         let mut state = vec![0; x.cells.len()];
         for &i in &faces {
-            let kept = u8::from(keep[i]) * KEPT_BIAS;
-            state[i] = ALIVE | x.face_type(i) << TYPE_SHIFT | (x.coface_count(i) as u8 + kept);
+            state[i] = face_state(x.face_type(i), x.coface_count(i) as u8, keep[i]);
         }
         let (_, state) = collapse_in_slabs(x, state, u32::MAX, None, Some(around), &Slabs::new(x));
         for &i in &faces {
