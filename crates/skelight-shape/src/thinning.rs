@@ -583,7 +583,10 @@ fn pierce_and_thin(x: &mut Complex, keep: &[bool]) {
         let around: Vec<usize> = pierced.iter().flat_map(|&sq| x.facets(sq).map(|t| t.0)).collect();
         faces.retain(|&i| x.cells[i]);
         // Cells off the list are outside the complex: state 0, as `initial_state` gives them.
-        let mut state = vec![0; x.cells.len()];
+        // Zeroed in parallel: a fresh array's page faults, or a reused one's zeroing, cost
+        // more than the sparse writes.
+        let mut state = Vec::with_capacity(x.cells.len());
+        state.par_extend(rayon::iter::repeat_n(0, x.cells.len()));
         for &i in &faces {
             state[i] = face_state(x.face_type(i), x.coface_count(i) as u8, keep[i]);
         }
