@@ -47,13 +47,7 @@ impl Dates {
         if !x.cells[i] {
             return NEVER;
         }
-        self.last_death(x, x.cofaces(i).map(|c| c.0))
-    }
-
-    /// The latest death among the faces of `x` in `cofaces` (cells around a face, in the
-    /// complex or not), 0 if none is in it: the birth of a face of `x` with those cofaces.
-    fn last_death(&self, x: &Complex, cofaces: impl IntoIterator<Item = usize>) -> Date {
-        cofaces.into_iter().filter(|&c| x.cells[c]).map(|c| self.death[c]).max().unwrap_or(0)
+        x.cofaces(i).filter(|c| x.cells[c.0]).map(|c| self.death[c.0]).max().unwrap_or(0)
     }
 }
 

@@ -16,7 +16,7 @@
 //! kept as in [`collapse_from`](super::collapse_from), with coface counts updated when a
 //! coface outside the zone dies at its date.
 
-use super::{is_free, Date, Dates, Neighbours, Pair, ALIVE, COUNT, KEPT_BIAS, NEVER, TYPE_SHIFT};
+use super::{face_state, is_free, Date, Dates, Neighbours, Pair, ALIVE, COUNT, NEVER, TYPE_SHIFT};
 use crate::complex::Complex;
 use crate::grid::BitSet;
 use rayon::prelude::*;
@@ -125,12 +125,12 @@ impl<'a> Replay<'a> {
         }
     }
 
-    /// The alive cofaces of face `i`, of type `ty`, at the start of layer `t` (as
-    /// [`Replay::alive_at`]), plus [`KEPT_BIAS`] if it is kept: the low bits of its state.
-    fn count_at(&self, i: usize, ty: u8, t: u32) -> u8 {
+    /// The state byte of face `i`, alive and of type `ty`, with its cofaces alive at the
+    /// start of layer `t` (as [`Replay::alive_at`]).
+    fn alive_state_at(&self, i: usize, ty: u8, t: u32) -> u8 {
         let cofaces = self.steps.cofaces(ty << TYPE_SHIFT);
         let alive = cofaces.iter().filter(|&&o| self.alive_at(i.wrapping_add_signed(o), t)).count();
-        alive as u8 + KEPT_BIAS * u8::from(self.keep[i])
+        face_state(ty, alive as u8, self.keep[i])
     }
 
     /// The state byte of face `i` at the start of layer `t` of the constrained run.
@@ -142,8 +142,7 @@ impl<'a> Replay<'a> {
         if !self.dated_alive(i, t) {
             return 0;
         }
-        let ty = self.x.face_type(i);
-        ALIVE | ty << TYPE_SHIFT | self.count_at(i, ty, t)
+        self.alive_state_at(i, self.x.face_type(i), t)
     }
 
     /// Adds the cells within [`REACH`] of each of `seeds` to the zone, with their states at
@@ -178,7 +177,7 @@ impl<'a> Replay<'a> {
             if self.state[j] & ALIVE == 0 {
                 continue;
             }
-            self.state[j] += self.count_at(j, self.state[j] >> TYPE_SHIFT, t);
+            self.state[j] = self.alive_state_at(j, self.state[j] >> TYPE_SHIFT, t);
             // Cofaces outside the zone die at their dates; j is told then.
             for &o in self.steps.cofaces(self.state[j]) {
                 let c = j.wrapping_add_signed(o);
