@@ -183,10 +183,9 @@ fn prefetch_around(state: &[u8], [_, sy, sz]: [usize; 3], g: usize) {
 /// One slab's work lists in [`collapse_in_slabs`]: the faces that may be free at the next
 /// layer's start, the layer's pairs, and those of its pairs near the slab's edges; the
 /// faces removed alone at each layer (see [`Start::Voxels`]), and those near the slab's
-/// edges. Aligned
-/// to two cache lines because different threads push to different slabs' lists: with the
-/// vectors' headers side by side, every push made the cores fight over a shared line, and
-/// the parallel find ran slower than one thread.
+/// edges. Aligned to two cache lines because different threads push to different slabs'
+/// lists: with the vectors' headers side by side, every push made the cores fight over a
+/// shared line, and the parallel find ran slower than one thread.
 #[derive(Clone, Default)]
 #[repr(align(128))]
 struct SlabLists {
