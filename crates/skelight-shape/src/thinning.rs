@@ -270,7 +270,7 @@ fn collapse_in_slabs(
     match start {
         Start::Voxels(distance) => {
             let death = dates.as_deref_mut().map(|d| &mut d.death[..]);
-            schedule_voxels(x, distance, slabs, &mut lists, death, layers);
+            schedule_voxels(x, distance, &steps, slabs, &mut lists, death, layers);
         }
         Start::Candidates(mut c) => {
             c.sort_unstable();
@@ -387,14 +387,15 @@ fn collapse_in_slabs(
 fn schedule_voxels(
     x: &Complex,
     distance: &Grid<u32>,
+    steps: &Neighbours,
     slabs: &Slabs,
     lists: &mut [SlabLists],
     death: Option<&mut [Date]>,
     layers: u32,
 ) {
     let [w, h, d] = distance.spec.dims;
-    let [_, sy, sz] = x.strides();
-    let (sy, sz) = (sy as isize, sz as isize);
+    // By axis, the lower side first: the sub-step order.
+    let voxel_facets = steps.facets(0b111 << TYPE_SHIFT);
     let zeros = vec![0; w];
     // The distances of voxel row (y, z), zeros outside the grid.
     let row = |y: isize, z: isize| -> &[u32] {
@@ -421,22 +422,16 @@ fn schedule_voxels(
                     if dv == 0 || dv > layers {
                         continue;
                     }
+                    // The neighbours' distances in the order of the voxel's facets.
                     let left = if vx > 0 { here[vx - 1] } else { 0 };
                     let right = here.get(vx + 1).copied().unwrap_or(0);
-                    let step = if left < dv {
-                        -1
-                    } else if right < dv {
-                        1
-                    } else if around[0][vx] < dv {
-                        -sy
-                    } else if around[1][vx] < dv {
-                        sy
-                    } else if around[2][vx] < dv {
-                        -sz
-                    } else {
-                        debug_assert!(around[3][vx] < dv, "not an L1 distance map");
-                        sz
-                    };
+                    let [below, above, back, front] = around.map(|r| r[vx]);
+                    let step = voxel_facets
+                        .iter()
+                        .zip([left, right, below, above, back, front])
+                        .find(|&(_, dw)| dw < dv)
+                        .map(|(&step, _)| step)
+                        .expect("an L1 distance map: every voxel of the set has a neighbour one closer");
                     let voxel = first + 2 * vx;
                     if let Some(death) = death.as_deref_mut() {
                         death[voxel - start] = dv as Date;
@@ -1021,9 +1016,9 @@ mod tests {
             };
             let found = run(Start::Scan, 1, u32::MAX);
             assert!(found.0 > 3, "seed {seed}: the object should take several layers");
-            for count in [1, 2, 5] {
-                for layers in [2, found.0 - 1, u32::MAX] {
-                    let cut = run(Start::Scan, 1, layers);
+            for layers in [2, found.0 - 1, u32::MAX] {
+                let cut = run(Start::Scan, 1, layers);
+                for count in [1, 2, 5] {
                     assert!(
                         run(Start::Voxels(&distance), count, layers) == cut,
                         "seed {seed}, {count} slabs, {layers}"
