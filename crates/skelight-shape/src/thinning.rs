@@ -74,7 +74,7 @@ enum Start<'a> {
     /// The complex is that of a voxel set with this L1 distance map, collapsed with no
     /// faces kept: its voxels' pairs are known in advance ([`schedule_voxels`]), and the
     /// lower faces' pairs follow from them. Only the dates are meaningful then: the final
-    /// state bytes leave the voxels alive and the squares' coface counts as they started.
+    /// state bytes leave the squares' coface counts as they started.
     Voxels(&'a Grid<u32>),
 }
 
@@ -195,20 +195,35 @@ struct SlabLists {
     /// Indexed by layer − 1.
     scheduled: Vec<Vec<u32>>,
     border_alone: Vec<usize>,
+    /// In a dated run, the faces removed too late for their state bytes to hold the date.
+    late: Vec<(usize, Date)>,
 }
 
 /// Below this many candidates in a layer, one thread finds their pairs, and below this many
 /// removals, one thread makes them.
 const PARALLEL_PAIRS: usize = 1 << 14;
 
-/// Mutable view of the collapse's arrays from face `offset` on (a slab, or everything).
+/// Mutable view of the collapse's state bytes from face `offset` on (a slab, or
+/// everything), and, in a dated run, the log of the faces removed too late for their state
+/// byte to hold the date (see [`dead_state`]).
 struct Removal<'a> {
     offset: usize,
     state: &'a mut [u8],
-    death: Option<&'a mut [Date]>,
+    late: Option<&'a mut Vec<(usize, Date)>>,
 }
 
 impl Removal<'_> {
+    /// Marks face `i` (an index into the view) removed in layer `layer`.
+    #[inline(always)]
+    fn mark_dead(&mut self, i: usize, layer: Date) {
+        self.state[i] = dead_state(layer);
+        if layer >= Date::from(LATE) {
+            if let Some(late) = self.late.as_mut() {
+                late.push((i + self.offset, layer));
+            }
+        }
+    }
+
     /// Removes the pair (f, g) chosen when layer `layer` started, and hands each facet
     /// that became free to `queue`. (g, a facet of f, loses its coface first, but being
     /// removed it is not free; g's facets are not f's, so the order changes nothing.)
@@ -222,13 +237,11 @@ impl Removal<'_> {
     #[inline(always)]
     fn remove_face(&mut self, steps: &Neighbours, i: usize, layer: Date, queue: &mut impl FnMut(usize)) {
         let i = i - self.offset;
+        let s = self.state[i];
+        debug_assert!(s & ALIVE != 0, "a face was removed twice");
+        self.mark_dead(i, layer);
         let state = &mut *self.state;
-        debug_assert!(state[i] & ALIVE != 0, "a face was removed twice");
-        state[i] &= !ALIVE;
-        if let Some(death) = self.death.as_mut() {
-            death[i] = layer;
-        }
-        for &offset in steps.facets(state[i]) {
+        for &offset in steps.facets(s) {
             // t lost a coface: it may be free now.
             let t = i.wrapping_add_signed(offset);
             debug_assert!(t < state.len());
@@ -251,27 +264,19 @@ fn collapse_in_slabs(
     x: &Complex,
     mut state: Vec<u8>,
     layers: u32,
-    mut dates: Option<&mut Dates>,
+    dates: Option<&mut Dates>,
     start: Start,
     slabs: &Slabs,
 ) -> (u32, Vec<u8>) {
-    let n = x.cells.len();
-    let layers = if dates.is_some() { layers.min(MAX_DATED_LAYERS) } else { layers };
+    let dated = dates.is_some();
+    let layers = if dated { layers.min(MAX_DATED_LAYERS) } else { layers };
     let steps = Neighbours::new(x);
     let strides = x.strides();
-    if let Some(d) = dates.as_deref_mut() {
-        // Filled in parallel: in a large grid, touching this many fresh pages is a cost.
-        d.death = Vec::with_capacity(n);
-        d.death.par_extend(rayon::iter::repeat_n(NEVER, n));
-    }
     let k = slabs.count();
     let mut lists: Vec<SlabLists> = vec![SlabLists::default(); k];
     // Candidates of each slab, in increasing order at the start.
     match start {
-        Start::Voxels(distance) => {
-            let death = dates.as_deref_mut().map(|d| &mut d.death[..]);
-            schedule_voxels(x, distance, &steps, slabs, &mut lists, death, layers);
-        }
+        Start::Voxels(distance) => schedule_voxels(x, distance, slabs, &mut lists, &mut state, dated, layers),
         Start::Candidates(mut c) => {
             c.sort_unstable();
             c.dedup();
@@ -292,6 +297,7 @@ fn collapse_in_slabs(
         }),
     };
     let (mut border, mut border_alone): (Vec<Pair>, Vec<usize>) = Default::default();
+    let mut late_border = Vec::new();
     let mut layer = 0;
     while layer < layers {
         // The pairs of the layer, by slab, from the state at its start.
@@ -323,31 +329,25 @@ fn collapse_in_slabs(
         // coface count drops to one, which happens once.
         if found + alone >= slabs.parallel_from {
             let states = slabs.split(&mut state);
-            let mut death_parts: Vec<Option<&mut [Date]>> = match dates.as_deref_mut() {
-                Some(d) => slabs.split(&mut d.death).into_iter().map(Some).collect(),
-                None => (0..k).map(|_| None).collect(),
-            };
-            states.into_par_iter().zip(death_parts.par_drain(..)).zip(lists.par_iter_mut()).enumerate().for_each(
-                |(s, ((state, death), l))| {
-                    let mut view = Removal { offset: slabs.bounds[s], state, death };
-                    let candidates = &mut l.candidates;
-                    for (f, g) in l.pairs.drain(..) {
-                        if slabs.inside(s, g) {
-                            view.remove(&steps, (f, g), date, |t| candidates.push(t));
-                        } else {
-                            l.border.push((f, g));
-                        }
+            states.into_par_iter().zip(lists.par_iter_mut()).enumerate().for_each(|(s, (state, l))| {
+                let SlabLists { candidates, pairs, border, scheduled, border_alone, late } = l;
+                let mut view = Removal { offset: slabs.bounds[s], state, late: dated.then_some(late) };
+                for (f, g) in pairs.drain(..) {
+                    if slabs.inside(s, g) {
+                        view.remove(&steps, (f, g), date, |t| candidates.push(t));
+                    } else {
+                        border.push((f, g));
                     }
-                    for i in l.scheduled.get_mut(at).into_iter().flat_map(|a| a.drain(..)) {
-                        let i = i as usize;
-                        if slabs.inside(s, i) {
-                            view.remove_face(&steps, i, date, &mut |t| candidates.push(t));
-                        } else {
-                            l.border_alone.push(i);
-                        }
+                }
+                for i in scheduled.get_mut(at).into_iter().flat_map(|a| a.drain(..)) {
+                    let i = i as usize;
+                    if slabs.inside(s, i) {
+                        view.remove_face(&steps, i, date, &mut |t| candidates.push(t));
+                    } else {
+                        border_alone.push(i);
                     }
-                },
-            );
+                }
+            });
         }
         // What the slabs left (near their edges), or the whole layer if it had too few
         // pairs to be worth waking the other threads.
@@ -357,7 +357,7 @@ fn collapse_in_slabs(
             border_alone.append(&mut l.border_alone);
             border_alone.extend(l.scheduled.get_mut(at).into_iter().flat_map(|a| a.drain(..)).map(|i| i as usize));
         }
-        let mut whole = Removal { offset: 0, state: &mut state, death: dates.as_deref_mut().map(|d| &mut d.death[..]) };
+        let mut whole = Removal { offset: 0, state: &mut state, late: dated.then_some(&mut late_border) };
         for pair in border.drain(..) {
             whole.remove(&steps, pair, date, |t| lists[slabs.of(t)].candidates.push(t));
         }
@@ -367,14 +367,23 @@ fn collapse_in_slabs(
     }
     if let Some(d) = dates {
         d.last = layer as Date;
+        // Written, never read, as it is built: reading fresh zeroed pages first would map
+        // them to the shared zero page and copy each on its first write, a flush of both
+        // cores' address translations per page (door: 45 ms).
+        d.death = Vec::with_capacity(state.len());
+        d.death.par_extend(state.par_iter().map(|&s| death_date(s)));
+        for &(i, date) in lists.iter().flat_map(|l| &l.late).chain(&late_border) {
+            d.death[i] = date;
+        }
     }
     (layer, state)
 }
 
 /// The voxels' pairs of the unconstrained collapse of the complex of a voxel set, with its
 /// L1 distance map `distance` (outside the grid counting as outside the set), for the
-/// first `layers` layers: each slab's list of the squares removed at each layer; the
-/// voxels' death dates are written into `death` if given.
+/// first `layers` layers: each slab's list of the squares removed at each layer. The
+/// voxels are marked removed at their dates in `state` (and, if `dated`, their slabs' late
+/// logs, see [`Removal`]) at once: no one reads a voxel's state in such a run.
 ///
 /// A voxel v is always maximal, and its square towards a 6-neighbour w is free exactly when
 /// w is gone (or outside the set): the square can leave only with v while v is there. So v
@@ -387,14 +396,15 @@ fn collapse_in_slabs(
 fn schedule_voxels(
     x: &Complex,
     distance: &Grid<u32>,
-    steps: &Neighbours,
     slabs: &Slabs,
     lists: &mut [SlabLists],
-    death: Option<&mut [Date]>,
+    state: &mut [u8],
+    dated: bool,
     layers: u32,
 ) {
     let [w, h, d] = distance.spec.dims;
     // By axis, the lower side first: the sub-step order.
+    let steps = Neighbours::new(x);
     let voxel_facets = steps.facets(0b111 << TYPE_SHIFT);
     let zeros = vec![0; w];
     // The distances of voxel row (y, z), zeros outside the grid.
@@ -405,12 +415,10 @@ fn schedule_voxels(
             &zeros
         }
     };
-    let deaths: Vec<Option<&mut [Date]>> = match death {
-        Some(death) => slabs.split(death).into_iter().map(Some).collect(),
-        None => (0..slabs.count()).map(|_| None).collect(),
-    };
-    lists.par_iter_mut().zip(deaths).enumerate().for_each(|(k, (l, mut death))| {
+    lists.par_iter_mut().zip(slabs.split(state)).enumerate().for_each(|(k, (l, state))| {
         let start = slabs.bounds[k];
+        let SlabLists { scheduled, late, .. } = l;
+        let mut view = Removal { offset: start, state, late: dated.then_some(late) };
         // The voxel planes whose cells lie in this slab (a plane of the array is in one).
         for z in (0..d).filter(|&z| slabs.of(x.index([0, 0, 2 * z + 1])) == k) {
             for y in 0..h {
@@ -433,14 +441,12 @@ fn schedule_voxels(
                         .map(|(&step, _)| step)
                         .expect("an L1 distance map: every voxel of the set has a neighbour one closer");
                     let voxel = first + 2 * vx;
-                    if let Some(death) = death.as_deref_mut() {
-                        death[voxel - start] = dv as Date;
-                    }
+                    view.mark_dead(voxel - start, dv as Date);
                     let at = dv as usize - 1;
-                    if l.scheduled.len() <= at {
-                        l.scheduled.resize_with(at + 1, Vec::new);
+                    if scheduled.len() <= at {
+                        scheduled.resize_with(at + 1, Vec::new);
                     }
-                    l.scheduled[at].push(voxel.wrapping_add_signed(step) as u32);
+                    scheduled[at].push(voxel.wrapping_add_signed(step) as u32);
                 }
             }
         }
@@ -456,6 +462,37 @@ const COUNT: u8 = 0b1111;
 const KEPT_BIAS: u8 = 8;
 const ALIVE: u8 = 1 << 4;
 const TYPE_SHIFT: u32 = 5;
+
+/// A removed face's state byte holds its death date: once ALIVE is clear no one reads the
+/// count, type or kept bits again (a face's facets outlive it, so a removal never lowers a
+/// removed face's count), and the seven other bits hold dates up to `LATE` − 1. A face
+/// removed in layer `LATE` or after has this code, and its date goes to a log (few faces:
+/// the door's 157 layers, the classroom's 388 are mostly long curves shrinking). Writing
+/// the date into a byte the removal touches anyway spares it a store into a death array
+/// twice as large as the state, mostly a cache miss: the door's layers took 95–100 ms
+/// with that store, 68–72 without.
+const LATE: u8 = 127;
+
+/// The state byte of a face removed in layer `layer` (≥ 1, so never 0, the state of a cell
+/// outside the complex).
+#[inline(always)]
+fn dead_state(layer: Date) -> u8 {
+    let code = layer.min(Date::from(LATE)) as u8;
+    (code & COUNT) | (code >> 4) << TYPE_SHIFT
+}
+
+/// The death date of a face with final state byte `s`, unless removed late ([`LATE`]):
+/// [`NEVER`] for a face left or a cell outside the complex.
+#[inline]
+fn death_date(s: u8) -> Date {
+    let code = (s & COUNT) | (s >> TYPE_SHIFT) << 4;
+    // A select rather than a branch, so that the caller's loop vectorises.
+    if s & ALIVE != 0 || code == 0 {
+        NEVER
+    } else {
+        Date::from(code)
+    }
+}
 
 /// `state[i]` without a bounds check. The collapse's inner loops index the state bytes
 /// with a face of the complex plus a stride, always in bounds: faces of the complex never
@@ -1112,6 +1149,38 @@ mod tests {
                 let derived: Vec<Date> = (0..x.cells.len()).map(|i| dates.birth(&x, i)).collect();
                 assert!(fast == slow && dates.death == death && derived == birth, "seed {seed}: dates differ");
             }
+        }
+    }
+
+    /// Dates from [`LATE`] on leave the state bytes for the death array: on a winding
+    /// passage a voxel wide (its curve collapses from the ends, an edge a layer), the dated
+    /// collapse, scheduled and found, dates every face as collapsing layer by layer shows.
+    #[test]
+    fn late_dates_spill_into_the_death_array() {
+        let set = set_from([22, 3, 34], 1.0, |x, y, z| {
+            let row = z % 2 == 1 && (1..21).contains(&x);
+            let turn = z % 2 == 0 && (2..32).contains(&z) && x == if z % 4 == 2 { 20 } else { 1 };
+            y == 1 && (row || turn)
+        });
+        let x = Complex::from_voxels(&set);
+        let mut expected = vec![NEVER; x.cells.len()];
+        let mut y = x.clone();
+        let mut layer = 0;
+        while par_dir_collapse(&mut y, None, 1, None) > 0 {
+            layer += 1;
+            for (i, date) in expected.iter_mut().enumerate() {
+                if x.cells[i] && !y.cells[i] && *date == NEVER {
+                    *date = layer;
+                }
+            }
+        }
+        assert!(layer > Date::from(LATE) + 10, "{layer} layers: the passage should outlast the in-byte dates");
+        let mut found = Dates::default();
+        par_dir_collapse(&mut x.clone(), None, u32::MAX, Some(&mut found));
+        let scheduled = dated_collapse(&x, &l1(&set, true), MAX_DATED_LAYERS).unwrap();
+        for dates in [found, scheduled] {
+            assert_eq!(dates.last, layer);
+            assert!(dates.death == expected);
         }
     }
 
