@@ -461,17 +461,17 @@ impl FilmBand<'_> {
     /// The tile's camera samples on this band's rows.
     fn add_tile(&mut self, tile: &FilmTile) {
         let rows = self.rows();
+        // The tile's columns that fall on the film, found once for all its rows.
+        let on_film = |x: i64| (x - tile.x0).clamp(0, tile.width as i64) as usize;
+        let columns = on_film(0)..on_film(self.width as i64);
         for ty in 0..tile.height {
             let y = tile.y0 + ty as i64;
             if !rows.contains(&y) {
                 continue;
             }
-            for tx in 0..tile.width {
-                let x = tile.x0 + tx as i64;
-                if x < 0 || x >= self.width as i64 {
-                    continue;
-                }
-                let (i, j) = ((y - rows.start) as usize * self.width + x as usize, ty * tile.width + tx);
+            let row = (y - rows.start) as usize * self.width;
+            for tx in columns.clone() {
+                let (i, j) = (row + (tile.x0 + tx as i64) as usize, ty * tile.width + tx);
                 for c in 0..3 {
                     self.sum[i][c] += tile.sum[j][c];
                     self.sum_sq[i][c] += tile.sum_sq[j][c];

@@ -312,10 +312,6 @@ impl LightPaths {
         let (b, j) = self.block(i);
         &b.lens_hits[b.hit_starts[j] as usize..b.hit_starts[j + 1] as usize]
     }
-    /// Every stored vertex (for estimators that resample among all of them).
-    pub fn vertices(&self) -> impl Iterator<Item = &Vertex> {
-        self.blocks.iter().flat_map(|b| &b.vertices)
-    }
 }
 
 /// Separates light sub-path random numbers from camera ones drawn for the same pixel.
