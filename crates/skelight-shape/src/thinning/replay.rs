@@ -16,10 +16,9 @@
 //! kept as in [`collapse_from`](super::collapse_from), with coface counts updated when a
 //! coface outside the zone dies at its date.
 
-use super::{face_state, is_free, Date, Dates, Neighbours, Pair, ALIVE, COUNT, NEVER, TYPE_SHIFT};
+use super::{face_state, is_free, Dates, Neighbours, Pair, ALIVE, COUNT, NEVER, TYPE_SHIFT};
 use crate::complex::Complex;
 use crate::grid::BitSet;
-use rayon::prelude::*;
 
 /// L1 radius, in the doubled grid, of the cells whose states decide whether a face goes in
 /// a layer. As the smaller face g of a pair: g's cofaces (1 step), that coface's facets
@@ -43,7 +42,7 @@ pub(super) fn replay_constrained(x: &mut Complex, dates: &Dates, keep: &[bool]) 
 /// [`replay_constrained`] giving up once the zone holds more than `most` faces.
 pub(super) fn replay_within(x: &mut Complex, dates: &Dates, keep: &[bool], most: usize) -> bool {
     let Some(alive) = Replay::new(x, dates, keep).run(most) else { return false };
-    x.cells.par_iter_mut().zip(&dates.death).for_each(|(c, &death)| *c &= death == NEVER);
+    dates.keep_survivors(&mut x.cells);
     for (i, alive) in alive {
         x.cells[i] = alive;
     }
@@ -53,7 +52,7 @@ pub(super) fn replay_within(x: &mut Complex, dates: &Dates, keep: &[bool], most:
 /// The constrained collapse inside the zone.
 struct Replay<'a> {
     x: &'a Complex,
-    death: &'a [Date],
+    dates: &'a Dates,
     keep: &'a [bool],
     steps: Neighbours,
     /// Cell offsets within [`REACH`], as coordinate steps.
@@ -77,11 +76,10 @@ struct Replay<'a> {
 impl<'a> Replay<'a> {
     fn new(x: &'a Complex, dates: &'a Dates, keep: &'a [bool]) -> Replay<'a> {
         let n = x.cells.len();
-        let death = &dates.death[..];
         let last = usize::from(dates.last);
         let mut kept_dying = vec![Vec::new(); last + 2];
-        for i in crate::grid::par_flagged_positions(keep, |i| death[i] != NEVER) {
-            kept_dying[death[i] as usize].push(i);
+        for i in crate::grid::par_flagged_positions(keep, |i| dates.death(i) != NEVER) {
+            kept_dying[dates.death(i) as usize].push(i);
         }
         let r = REACH;
         let mut ball = Vec::new();
@@ -96,7 +94,7 @@ impl<'a> Replay<'a> {
         }
         Replay {
             x,
-            death,
+            dates,
             keep,
             steps: Neighbours::new(x),
             ball,
@@ -112,7 +110,7 @@ impl<'a> Replay<'a> {
 
     /// Whether face `i` is alive at the start of layer `t` in the dated run.
     fn dated_alive(&self, i: usize, t: u32) -> bool {
-        self.x.cells[i] && u32::from(self.death[i]) >= t
+        self.x.cells[i] && u32::from(self.dates.death(i)) >= t
     }
 
     /// Whether face `i` is alive at the start of layer `t` of the constrained run (the
@@ -181,12 +179,14 @@ impl<'a> Replay<'a> {
             // Cofaces outside the zone die at their dates; j is told then.
             for &o in self.steps.cofaces(self.state[j]) {
                 let c = j.wrapping_add_signed(o);
-                if !self.zone.contains(c) && self.dated_alive(c, t) && self.death[c] != NEVER {
-                    self.loses[self.death[c] as usize].push((j, c));
+                let death = self.dates.death(c);
+                if !self.zone.contains(c) && self.dated_alive(c, t) && death != NEVER {
+                    self.loses[death as usize].push((j, c));
                 }
             }
-            if self.death[j] != NEVER {
-                self.dies[self.death[j] as usize].push(j);
+            let death = self.dates.death(j);
+            if death != NEVER {
+                self.dies[death as usize].push(j);
             }
             if is_free(self.state[j]) {
                 free.push(j);
@@ -257,7 +257,7 @@ impl<'a> Replay<'a> {
                 for face in [f, g] {
                     if self.zone.contains(face) {
                         self.remove(face, &mut free);
-                        if u32::from(self.death[face]) != t {
+                        if u32::from(self.dates.death(face)) != t {
                             parted.push(face);
                         }
                     }
