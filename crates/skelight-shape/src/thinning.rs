@@ -55,12 +55,13 @@ impl Dates {
     /// or a cell outside the complex.
     #[inline]
     pub fn death(&self, i: usize) -> Date {
-        match date_code(self.state[i]) {
-            LATE_CODE => {
+        match byte_code(self.state[i]) {
+            0 => NEVER,
+            LATE => {
                 let k = self.late.binary_search_by_key(&i, |&(f, _)| f).expect("a face removed late is logged");
                 self.late[k].1
             }
-            code => code,
+            code => Date::from(code),
         }
     }
 
@@ -520,19 +521,14 @@ fn dead_state(layer: Date) -> u8 {
     (code & COUNT) | (code >> 4) << TYPE_SHIFT
 }
 
-/// [`LATE`] as a date code.
-const LATE_CODE: Date = LATE as Date;
-
-/// The death date of a face with final state byte `s`, or [`LATE_CODE`] if it was removed
-/// in that layer or after: [`NEVER`] for a face left or a cell outside the complex.
+/// A state byte's date code as a byte: [`LATE`] for a face removed then or after, 0 for a
+/// face left or a cell outside the complex.
 #[inline]
-fn date_code(s: u8) -> Date {
-    let code = (s & COUNT) | (s >> TYPE_SHIFT) << 4;
-    // A select rather than a branch, so that loops over many bytes vectorise.
-    if s & ALIVE != 0 || code == 0 {
-        NEVER
+fn byte_code(s: u8) -> u8 {
+    if s & ALIVE != 0 {
+        0
     } else {
-        Date::from(code)
+        (s & COUNT) | (s >> TYPE_SHIFT) << 4
     }
 }
 
@@ -805,7 +801,7 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
         .map(|z| {
             let mut may_pass = Vec::new();
             let (mut lifespans, mut column_max, mut edge_max) = (Vec::new(), Vec::new(), Vec::new());
-            let mut codes: [Vec<Date>; 5] = Default::default();
+            let (mut codes, mut births): ([Vec<u8>; 5], Vec<u8>) = Default::default();
             for y in 0..ny {
                 if y & 1 == 1 && z & 1 == 1 {
                     continue; // squares and voxels only
@@ -857,7 +853,7 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 // (`voxels_die_at_their_l1_distance`) and its squares on the edge, cofaces of
                 // the edge, die no earlier than v.
                 //
-                // The pass reads the dates' codes (see [`date_code`]), in which a date from
+                // The pass reads the dates' byte codes (see [`byte_code`]), in which a date from
                 // [`LATE`] on reads as LATE: too low for the edge's death, so the edge's is
                 // taken as the last layer, which keeps the test's lifespan an upper bound and
                 // its birth a lower one. The edges it lets through are tested again with
@@ -865,36 +861,48 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 let first = (z + 1) * sz + (y + 1) * sy + first_x + 1;
                 let count = edge_max.len();
                 let [a, b] = coface_steps.map(|s| s as isize);
-                // The codes of the edges' row and of their cofaces' rows, decoded in plain
-                // loops over bytes, which vectorise (an every-other read of bytes does not).
+                // The byte codes of the edges' row and of their cofaces' rows, and the
+                // latest of the cofaces' at every cell, in plain loops over bytes, which
+                // vectorise (reading every other byte does not).
                 for (codes, offset) in codes.iter_mut().zip([0, -a, a, -b, b]) {
                     codes.clear();
                     let cells = &dates.state[first.wrapping_add_signed(offset)..][..2 * count];
-                    codes.extend(cells.iter().map(|&s| date_code(s)));
+                    codes.extend(cells.iter().map(|&s| byte_code(s)));
                 }
-                let every_other = |k: usize| codes[k].as_chunks::<2>().0.iter().map(|pair| pair[0]);
-                let edge_lifespan = |death: Date, [c0, c1, c2, c3]: [Date; 4], dmax: u32| {
-                    let dated = |d: Date| d.wrapping_add(1); // NEVER to 0, the rest in order
-                    let birth = dated(c0).max(dated(c1)).max(dated(c2)).max(dated(c3)).saturating_sub(1);
+                let [own, c0, c1, c2, c3] = &codes;
+                births.clear();
+                births.extend(
+                    c0.iter().zip(c1).zip(c2.iter().zip(c3)).map(|((&a, &b), (&c, &d))| a.max(b).max(c).max(d)),
+                );
+                let edge_lifespan = |death: Date, birth: Date, dmax: u32| {
                     let lifespan = death.wrapping_sub(birth);
                     let may_pass = death != NEVER && u32::from(lifespan) + dmax > u32::from(birth);
-                    (if may_pass { lifespan } else { 0 }, birth)
+                    if may_pass {
+                        lifespan
+                    } else {
+                        0
+                    }
                 };
+                fn every_other(codes: &[u8]) -> impl Iterator<Item = u8> + '_ {
+                    codes.as_chunks::<2>().0.iter().map(|&[code, _]| code)
+                }
                 lifespans.clear();
-                lifespans.extend(
-                    every_other(0)
-                        .zip(every_other(1).zip(every_other(2)))
-                        .zip(every_other(3).zip(every_other(4)))
-                        .zip(&edge_max)
-                        .map(|(((death, (c0, c1)), (c2, c3)), &dmax)| {
-                            let death = if death == LATE_CODE { dates.last } else { death };
-                            edge_lifespan(death, [c0, c1, c2, c3], dmax).0
-                        }),
-                );
+                lifespans.extend(every_other(own).zip(every_other(&births)).zip(&edge_max).map(
+                    |((death, birth), &dmax)| {
+                        let death = match death {
+                            0 => NEVER,
+                            LATE => dates.last,
+                            date => Date::from(date),
+                        };
+                        edge_lifespan(death, Date::from(birth), dmax)
+                    },
+                ));
                 for (k, _) in lifespans.iter().enumerate().filter(|(_, &l)| l != 0) {
                     let e = first + 2 * k;
-                    let cofaces = [-a, a, -b, b].map(|o| dates.death(e.wrapping_add_signed(o)));
-                    let (lifespan, birth) = edge_lifespan(dates.death(e), cofaces, edge_max[k]);
+                    let dated = |d: Date| d.wrapping_add(1); // NEVER to 0, the rest in order
+                    let cofaces = [-a, a, -b, b].map(|o| dated(dates.death(e.wrapping_add_signed(o))));
+                    let birth = cofaces.into_iter().max().unwrap_or(0).saturating_sub(1);
+                    let lifespan = edge_lifespan(dates.death(e), birth, edge_max[k]);
                     if lifespan != 0 {
                         may_pass.push((e, i64::from(lifespan), i64::from(birth) - i64::from(edge_max[k])));
                     }
