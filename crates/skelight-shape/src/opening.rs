@@ -164,7 +164,7 @@ pub fn l1_opening(l1: &Grid<u32>) -> Grid<u32> {
 /// (door: 383 of 5.8 M edges), and walking every ball would cost the whole map.
 ///
 /// Each ridge centre (as in [`l1_opening`], the only balls that matter) raises the wanted
-/// voxels its ball contains; the wanted voxels are bucketed in cubes of [`BUCKET`] voxels,
+/// voxels its ball contains; the wanted voxels are bucketed in cubes of `BUCKET` voxels,
 /// so a centre looks only at the buckets its ball's bounding box meets.
 pub fn l1_opening_at(l1: &Grid<u32>, voxels: &[usize]) -> Vec<u32> {
     let spec = l1.spec;

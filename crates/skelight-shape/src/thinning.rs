@@ -17,9 +17,9 @@ use rayon::prelude::*;
 
 mod replay;
 
-/// A layer number. Two per face of the complex are kept, so 16 bits rather than 32 take a
-/// sixth off the analysis' peak memory (door 234: 503 → 422 MB) and the dated collapse
-/// writes half the bytes.
+/// A layer number. A face's date is kept in its state byte while it fits in seven bits
+/// (see `dead_state`) and logged beside it after; 16 bits leave room for any building (a
+/// collapse needing more layers is refused, [`TooManyLayers`]) and keep the log small.
 pub type Date = u16;
 
 /// A date that never came (a face never removed).
@@ -32,7 +32,7 @@ pub const MAX_DATED_LAYERS: u32 = NEVER as u32 - 1;
 /// birth dates follow (Def. 6.2, [`Dates::birth`]).
 ///
 /// Held as the collapse left its state bytes, where a removed face's byte holds its date
-/// (see [`dead_state`]), with the few dates too late for a byte beside them: an array of
+/// (see `dead_state`), with the few dates too late for a byte beside them: an array of
 /// 16-bit dates would cost two more bytes per cell at the analysis' peak (classroom 430:
 /// 280 MB) and a pass over every cell to write it.
 #[derive(Default)]
