@@ -253,7 +253,7 @@ impl Distribution1D {
     }
 }
 
-/// Piecewise-constant 2D distribution on [0,1]² (rows = v, columns = u).
+/// Piecewise-constant 2D distribution on [0, 1]² (rows = v, columns = u).
 #[derive(Clone, Debug)]
 pub struct Distribution2D {
     conditional: Vec<Distribution1D>,
@@ -271,14 +271,14 @@ impl Distribution2D {
             .collect();
         Distribution2D { conditional, marginal: Distribution1D::new(&row_sums), width, height }
     }
-    /// Returns the point in [0,1]² and its density with respect to area on [0,1]².
+    /// Returns the point in [0, 1]² and its density with respect to area on [0, 1]².
     pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
         let (row, p_row, v_rem) = self.marginal.sample_discrete(u.y);
         let (col, p_col, u_rem) = self.conditional[row].sample_discrete(u.x);
         let p = vec2((col as f32 + u_rem) / self.width as f32, (row as f32 + v_rem) / self.height as f32);
         (p, p_row * p_col * (self.width * self.height) as f32)
     }
-    /// Density at a point of [0,1]².
+    /// Density at a point of [0, 1]².
     pub fn pdf(&self, p: Vec2) -> f32 {
         let col = ((p.x * self.width as f32) as usize).min(self.width - 1);
         let row = ((p.y * self.height as f32) as usize).min(self.height - 1);

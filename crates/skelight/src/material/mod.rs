@@ -199,7 +199,7 @@ impl Bsdf {
 pub enum Perturbation {
     /// Height field: the normal tilts with the height gradient, scaled.
     Bump { height: Texture, scale: f32 },
-    /// Tangent-space normal map in [0,1] encoding.
+    /// Tangent-space normal map in [0, 1] encoding.
     NormalMap { normals: Texture },
 }
 
