@@ -161,7 +161,7 @@ mod tests {
         let empty = two_rooms_and_a_gap(0.5);
         let (x, _) = curvilinear_skeleton(&empty, EdgeConstraint::Thesis, &[]).unwrap();
         let edt = euclidean_squared(&empty, true);
-        let graph = SkeletonGraph::from_complex(&x, &empty.spec, &empty, &edt).filtered();
+        let graph = SkeletonGraph::from_complex(&x, &empty.spec, &empty, |v| edt.data[v]).filtered();
         let mapping = NodeMapping::new(&graph, &empty);
         (empty, graph, mapping)
     }

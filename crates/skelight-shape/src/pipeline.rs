@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use crate::complex::Complex;
-use crate::distance::{chessboard, euclidean_squared};
+use crate::distance::{chessboard, EuclideanPlanes};
 use crate::grid::{scanline_fill, Grid, GridError, GridSpec};
 use crate::labeling::{opening_forest_labelling, Labelling};
 use crate::mapping::NodeMapping;
@@ -145,14 +145,15 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
         }
     }
     lap("voxelise", &mut timings);
-    // Independent and each sequential: the Euclidean map beside the chessboard and opening.
-    let (edt, open) = rayon::join(|| euclidean_squared(&empty, true), || opening(&chessboard(&empty, true)));
+    // Independent: the Euclidean map beside the chessboard and opening. The Euclidean one
+    // is wanted only at the skeleton's nodes, so its last pass waits for them.
+    let (edt, open) = rayon::join(|| EuclideanPlanes::new(&empty, true), || opening(&chessboard(&empty, true)));
     lap("distance and opening maps", &mut timings);
     let anchor_voxels: Vec<Option<usize>> = settings.anchors.iter().map(|a| nearest_empty_voxel(&empty, a)).collect();
     let anchors: Vec<usize> = anchor_voxels.iter().flatten().copied().collect();
     let (complex, _) = curvilinear_skeleton(&empty, settings.constraint, &anchors)?;
     lap("thinning (Alg. 2-3, piercing)", &mut timings);
-    let skeleton = SkeletonGraph::from_complex(&complex, &spec, &empty, &edt);
+    let skeleton = SkeletonGraph::from_complex(&complex, &spec, &empty, |v| edt.at(v));
     let filtered = skeleton.filtered();
     lap("skeleton graph and filtering (Alg. 4)", &mut timings);
     // Independent and each sequential: one thread floods the node mapping while the other

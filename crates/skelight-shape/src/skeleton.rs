@@ -25,15 +25,15 @@ pub struct SkeletonGraph {
 
 impl SkeletonGraph {
     /// The graph of a curvilinear complex `x` on the grid `spec` of the empty space `empty`,
-    /// with `edt` the squared Euclidean distance map of the empty space (in voxels²).
-    pub fn from_complex(x: &Complex, spec: &GridSpec, empty: &Grid<bool>, edt: &Grid<u64>) -> SkeletonGraph {
+    /// with `edt` the squared Euclidean distance of an empty voxel to the scene (in voxels²).
+    pub fn from_complex(x: &Complex, spec: &GridSpec, empty: &Grid<bool>, edt: impl Fn(usize) -> u64) -> SkeletonGraph {
         // A skeleton keeps few faces of a large array: find them in parallel, then look nodes
         // up by face in the sorted list instead of a node array as large as the complex.
         let mut graph = SkeletonGraph::default();
         let mut node_at: Vec<(usize, u32)> = Vec::new();
         for i in par_flagged_positions(&x.cells, |i| x.dim(i) == 0) {
             // The empty voxel around the vertex farthest from the scene.
-            let best = x.voxels_around(i).filter(|&v| empty.data[v]).map(|v| (edt.data[v], v)).reduce(|a, b| {
+            let best = x.voxels_around(i).filter(|&v| empty.data[v]).map(|v| (edt(v), v)).reduce(|a, b| {
                 if b.0 > a.0 {
                     b
                 } else {
@@ -102,7 +102,7 @@ mod tests {
         let empty = two_rooms_and_a_gap(0.5);
         let (x, _) = curvilinear_skeleton(&empty, EdgeConstraint::Thesis, &[]).unwrap();
         let edt = euclidean_squared(&empty, true);
-        let g = SkeletonGraph::from_complex(&x, &empty.spec, &empty, &edt);
+        let g = SkeletonGraph::from_complex(&x, &empty.spec, &empty, |v| edt.data[v]);
         assert!(!g.nodes.is_empty());
         assert_eq!(g.components(), 1);
         // A tree (the rooms have no tunnel): edges = nodes − 1.
