@@ -506,8 +506,9 @@ const TYPE_SHIFT: u32 = 5;
 /// A removed face's state byte holds its death date: once ALIVE is clear no one reads the
 /// count, type or kept bits again (a face's facets outlive it, so a removal never lowers a
 /// removed face's count), and the seven other bits hold dates up to `LATE` − 1. A face
-/// removed in layer `LATE` or after has this code, and its date goes to a log (few faces:
-/// the door's 157 layers, the classroom's 388 are mostly long curves shrinking). Writing
+/// removed in layer `LATE` or after has this code, and its date goes to a log: the late
+/// layers are mostly long curves shrinking, so few faces (door 234: 464 of 15.6 M cells;
+/// classroom 430: 0.76 M of 140 M). Writing
 /// the date into a byte the removal touches anyway spares it a store into a death array
 /// twice as large as the state, mostly a cache miss: the door's layers took 95–100 ms
 /// with that store, 68–72 without.
@@ -899,9 +900,7 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 ));
                 for (k, _) in lifespans.iter().enumerate().filter(|(_, &l)| l != 0) {
                     let e = first + 2 * k;
-                    let dated = |d: Date| d.wrapping_add(1); // NEVER to 0, the rest in order
-                    let cofaces = [-a, a, -b, b].map(|o| dated(dates.death(e.wrapping_add_signed(o))));
-                    let birth = cofaces.into_iter().max().unwrap_or(0).saturating_sub(1);
+                    let birth = dates.birth(x, e);
                     let lifespan = edge_lifespan(dates.death(e), birth, edge_max[k]);
                     if lifespan != 0 {
                         may_pass.push((e, i64::from(lifespan), i64::from(birth) - i64::from(edge_max[k])));
@@ -1225,7 +1224,7 @@ mod tests {
     /// dated collapse, scheduled and found, dates every face as collapsing layer by layer
     /// shows.
     #[test]
-    fn late_dates_spill_into_the_death_array() {
+    fn late_dates_are_logged_beside_the_state_bytes() {
         let set = winding_passage();
         let x = Complex::from_voxels(&set);
         let mut expected = vec![NEVER; x.cells.len()];
