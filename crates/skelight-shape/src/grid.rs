@@ -133,24 +133,25 @@ impl<T: Clone> Grid<T> {
         let i = self.spec.index(x, y, z);
         self.data[i] = v;
     }
+    /// The voxels of row (y, z), x from 0.
+    #[inline]
+    pub fn row(&self, y: usize, z: usize) -> &[T] {
+        let w = self.spec.dims[0];
+        &self.data[self.spec.index(0, y, z)..][..w]
+    }
+    /// Row (y, z) if it lies inside the grid.
+    #[inline]
+    pub fn row_at(&self, y: isize, z: isize) -> Option<&[T]> {
+        let [_, h, d] = self.spec.dims;
+        ((0..h as isize).contains(&y) && (0..d as isize).contains(&z)).then(|| self.row(y as usize, z as usize))
+    }
 }
 
-/// The positions i < `len` where `pred(i)` holds, in increasing order, found in parallel by
-/// blocks. Over arrays of millions of cells rayon's own `filter().collect()` costs about ten
-/// times more (60 ms against 6 on the door's 16.5 M faces).
-pub(crate) fn par_positions(len: usize, pred: impl Fn(usize) -> bool + Sync) -> Vec<usize> {
-    use rayon::prelude::*;
-    const BLOCK: usize = 1 << 16;
-    (0..len.div_ceil(BLOCK))
-        .into_par_iter()
-        .flat_map_iter(|b| (b * BLOCK..((b + 1) * BLOCK).min(len)).filter(|&i| pred(i)))
-        .collect()
-}
-
-/// The positions i where `flags[i]` and `pred(i)` hold, in increasing order: as
-/// [`par_positions`], reading the flags eight at a time and skipping those all false. For
+/// The positions i where `flags[i]` and `pred(i)` hold, in increasing order, found in
+/// parallel by blocks (rayon's own `filter().collect()` costs about ten times more over
+/// millions of cells), reading the flags eight at a time and skipping those all false. For
 /// the few faces left in a large complex after thinning (door: 58 850 of 15.6 M cells,
-/// 10.8 ms with `par_positions`, 1.4 ms this way).
+/// 10.8 ms testing every cell, 1.4 ms this way).
 pub(crate) fn par_flagged_positions(flags: &[bool], pred: impl Fn(usize) -> bool + Sync) -> Vec<usize> {
     use rayon::prelude::*;
     const BLOCK: usize = 1 << 16;
@@ -277,11 +278,6 @@ impl Padded {
     /// Index of voxel (x, y, z) (grid coordinates).
     pub(crate) fn index(&self, x: usize, y: usize, z: usize) -> usize {
         self.row_start(y, z) + x
-    }
-
-    /// Grid coordinates of the voxel at index `i` (not padding).
-    pub(crate) fn coords(&self, i: usize) -> [usize; 3] {
-        [i % self.row - 1, i % self.plane / self.row - 1, i / self.plane - 1]
     }
 
     /// Index of the first voxel of row (y, z) (grid coordinates).

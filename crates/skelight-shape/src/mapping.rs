@@ -159,7 +159,7 @@ mod tests {
 
     fn two_rooms() -> (Grid<bool>, SkeletonGraph, NodeMapping) {
         let empty = two_rooms_and_a_gap(0.5);
-        let (x, _) = curvilinear_skeleton(&empty, EdgeConstraint::Thesis, &[]).unwrap();
+        let x = curvilinear_skeleton(&empty, EdgeConstraint::Thesis, &[]).unwrap();
         let edt = euclidean_squared(&empty, true);
         let graph = SkeletonGraph::from_complex(&x, &empty.spec, &empty, |v| edt.data[v]).filtered();
         let mapping = NodeMapping::new(&graph, &empty);

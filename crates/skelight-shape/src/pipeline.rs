@@ -151,7 +151,7 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     lap("distance and opening maps", &mut timings);
     let anchor_voxels: Vec<Option<usize>> = settings.anchors.iter().map(|a| nearest_empty_voxel(&empty, a)).collect();
     let anchors: Vec<usize> = anchor_voxels.iter().flatten().copied().collect();
-    let (complex, _) = curvilinear_skeleton(&empty, settings.constraint, &anchors)?;
+    let complex = curvilinear_skeleton(&empty, settings.constraint, &anchors)?;
     lap("thinning (Alg. 2-3, piercing)", &mut timings);
     let skeleton = SkeletonGraph::from_complex(&complex, &spec, &empty, |v| edt.at(v));
     let filtered = skeleton.filtered();

@@ -100,7 +100,7 @@ mod tests {
     #[test]
     fn graph_and_filtered_graph_of_two_rooms() {
         let empty = two_rooms_and_a_gap(0.5);
-        let (x, _) = curvilinear_skeleton(&empty, EdgeConstraint::Thesis, &[]).unwrap();
+        let x = curvilinear_skeleton(&empty, EdgeConstraint::Thesis, &[]).unwrap();
         let edt = euclidean_squared(&empty, true);
         let g = SkeletonGraph::from_complex(&x, &empty.spec, &empty, |v| edt.data[v]);
         assert!(!g.nodes.is_empty());

@@ -448,13 +448,7 @@ fn schedule_voxels(
     let voxel_facets = steps.facets(0b111 << TYPE_SHIFT);
     let zeros = vec![0; w];
     // The distances of voxel row (y, z), zeros outside the grid.
-    let row = |y: isize, z: isize| -> &[u32] {
-        if (0..h as isize).contains(&y) && (0..d as isize).contains(&z) {
-            &distance.data[(z as usize * h + y as usize) * w..][..w]
-        } else {
-            &zeros
-        }
-    };
+    let row = |y: isize, z: isize| distance.row_at(y, z).unwrap_or(&zeros);
     lists.par_iter_mut().zip(slabs.split(state)).enumerate().for_each(|(k, (l, state))| {
         let start = slabs.bounds[k];
         let SlabLists { scheduled, late, .. } = l;
@@ -683,8 +677,8 @@ pub enum EdgeConstraint {
 }
 
 /// The curvilinear skeleton of the voxel set `set` (Alg. 3 and §6.2.4), reaching the voxels
-/// of `anchors` (linear indices; those outside the set are ignored). Returns the skeleton
-/// and the dates of the unconstrained thinning of the set.
+/// of `anchors` (linear indices; those outside the set are ignored). The dates of the
+/// unconstrained thinning are [`constraint_set`]'s.
 ///
 /// Faces that the unconstrained thinning never removes have an infinite lifespan; on a
 /// curvilinear object they are its cycles, which no collapse can break, but around a
@@ -697,13 +691,17 @@ pub fn curvilinear_skeleton(
     set: &Grid<bool>,
     constraint: EdgeConstraint,
     anchors: &[usize],
-) -> Result<(Complex, Dates), TooManyLayers> {
+) -> Result<Complex, TooManyLayers> {
     let (mut skeleton, dates, keep) = constraint_set(set, constraint, anchors)?;
     if !replay::replay_constrained(&mut skeleton, &dates, &keep) {
         par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
     }
-    pierce_and_thin(&mut skeleton, &keep);
-    Ok((skeleton, dates))
+    // The dates are spent: their state bytes, cleared, hold the piercing rounds' states.
+    // Clearing pages already mapped costs the door ~1 ms; a fresh array's page faults, 3–7.
+    let mut scratch = dates.state;
+    scratch.par_chunks_mut(1 << 16).for_each(|chunk| chunk.fill(0));
+    pierce_and_thin(&mut skeleton, &keep, scratch);
+    Ok(skeleton)
 }
 
 /// The dates of the unconstrained collapse of `x`, the complex of a voxel set with L1
@@ -748,17 +746,24 @@ pub fn constraint_set(
 /// surface parts left and collapses again, until only curves remain.
 pub fn thin_keeping(x: &mut Complex, keep: &[bool]) {
     par_dir_collapse(x, Some(keep), u32::MAX, None);
-    pierce_and_thin(x, keep);
+    // Zeroed in parallel: a zeroed allocation would take its page faults in the rounds'
+    // sparse writes, reads first (see docs/benchmarks.md), which costs more.
+    let mut scratch = Vec::with_capacity(x.cells.len());
+    scratch.par_extend(rayon::iter::repeat_n(0, x.cells.len()));
+    pierce_and_thin(x, keep, scratch);
 }
 
 /// §6.2.4 on `x`, collapsed keeping `keep`: pierces the surface parts left and collapses
-/// again, until only curves remain.
+/// again, until only curves remain. `state` is one zero byte per cell, for the rounds'
+/// state bytes.
 ///
 /// Few faces are left by then in a large array (door: 0.3 % of 15.6 M cells), so they are
-/// listed once, and each round finds its squares in the list and builds the state bytes of
-/// the listed faces alone: on the door a round's dense state cost 10 ms and its square scan
-/// 5, against 1 ms for the collapse itself.
-fn pierce_and_thin(x: &mut Complex, keep: &[bool]) {
+/// listed once, and each round finds its squares in the list and writes the state bytes of
+/// the listed faces alone, clearing them after: on the door a round's dense state cost
+/// 10 ms and its square scan 5, against 1 ms for the collapse itself. (Cells off the list
+/// are outside the complex, state 0 as `initial_state` gives them, and a round's collapse
+/// writes only to faces of the complex.)
+fn pierce_and_thin(x: &mut Complex, keep: &[bool], mut state: Vec<u8>) {
     let mut faces = par_flagged_positions(&x.cells, |_| true);
     loop {
         let squares: Vec<usize> = faces.iter().copied().filter(|&i| x.dim(i) == 2).collect();
@@ -768,17 +773,13 @@ fn pierce_and_thin(x: &mut Complex, keep: &[bool]) {
         }
         let around: Vec<usize> = pierced.iter().flat_map(|&sq| x.facets(sq).map(|t| t.0)).collect();
         faces.retain(|&i| x.cells[i]);
-        // Cells off the list are outside the complex: state 0, as `initial_state` gives them.
-        // Zeroed in parallel: a fresh array's page faults, or a reused one's zeroing, cost
-        // more than the sparse writes.
-        let mut state = Vec::with_capacity(x.cells.len());
-        state.par_extend(rayon::iter::repeat_n(0, x.cells.len()));
         for &i in &faces {
             state[i] = face_state(x.face_type(i), x.coface_count(i) as u8, keep[i]);
         }
-        let state = collapse_in_slabs(x, state, u32::MAX, false, Start::Candidates(around), &Slabs::new(x)).state;
+        state = collapse_in_slabs(x, state, u32::MAX, false, Start::Candidates(around), &Slabs::new(x)).state;
         for &i in &faces {
             x.cells[i] = state[i] & ALIVE != 0;
+            state[i] = 0;
         }
         faces.retain(|&i| x.cells[i]);
     }
@@ -827,8 +828,7 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 if constraint == EdgeConstraint::Thesis {
                     for vz in voxel_span(z, d) {
                         for vy in voxel_span(y, h) {
-                            let row = &distance.data[(vz * h + vy) * w..][..w];
-                            for (m, &v) in column_max[1..=w].iter_mut().zip(row) {
+                            for (m, &v) in column_max[1..=w].iter_mut().zip(distance.row(vy, vz)) {
                                 *m = (*m).max(v);
                             }
                         }
@@ -1410,7 +1410,7 @@ mod tests {
         let set =
             set_from([24, 7, 7], 1.0, |x, y, z| (1..23).contains(&x) && (1..6).contains(&y) && (1..6).contains(&z));
         for constraint in [EdgeConstraint::Thesis, EdgeConstraint::ReleasedCode] {
-            let (s, _) = curvilinear_skeleton(&set, constraint, &[]).unwrap();
+            let s = curvilinear_skeleton(&set, constraint, &[]).unwrap();
             assert!(s.is_curvilinear(), "{constraint:?}: {:?}", s.face_counts());
             assert_eq!(betti(&s), (1, 0, 0));
             let pts: Vec<[usize; 3]> = (0..s.cells.len()).filter(|&i| s.cells[i]).map(|i| s.coords(i)).collect();
@@ -1434,7 +1434,7 @@ mod tests {
             let arm_y = (1..6).contains(&x) && (1..19).contains(&y);
             z_ok && (arm_x || arm_y)
         });
-        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]).unwrap();
+        let s = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]).unwrap();
         assert!(s.is_curvilinear());
         assert_eq!(betti(&s), (1, 0, 0));
         let pts: Vec<[usize; 3]> = (0..s.cells.len()).filter(|&i| s.cells[i]).map(|i| s.coords(i)).collect();
@@ -1446,7 +1446,7 @@ mod tests {
     #[test]
     fn two_rooms_and_an_ajar_door_give_two_parts_joined_through_the_gap() {
         let set = two_rooms_and_a_gap(1.0);
-        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]).unwrap();
+        let s = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]).unwrap();
         assert!(s.is_curvilinear());
         assert_eq!(betti(&s), (1, 0, 0));
         let pts: Vec<[usize; 3]> = (0..s.cells.len()).filter(|&i| s.cells[i]).map(|i| s.coords(i)).collect();
@@ -1460,17 +1460,22 @@ mod tests {
     /// it is pierced, leaving a connected curvilinear skeleton.
     #[test]
     fn a_floating_light_is_pierced_into_a_curvilinear_skeleton() {
-        let set = set_from([16, 16, 16], 1.0, |x, y, z| {
-            let room = (1..15).contains(&x) && (1..15).contains(&y) && (1..15).contains(&z);
-            let light = (6..10).contains(&x) && (6..10).contains(&y) && z == 10;
-            room && !light
-        });
-        let x = Complex::from_voxels(&set);
-        assert_eq!(betti(&x), (1, 0, 1), "the light makes a cavity");
-        let (s, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]).unwrap();
-        assert!(s.is_curvilinear(), "{:?}", s.face_counts());
-        assert_eq!(betti(&s).0, 1);
-        assert_eq!(betti(&s).2, 0);
+        // One light, then three (the surfaces around them take several piercing rounds).
+        for lights in [vec![[6, 6, 10]], vec![[2, 2, 4], [9, 3, 10], [4, 10, 7]]] {
+            let set = set_from([16, 16, 16], 1.0, |x, y, z| {
+                let room = (1..15).contains(&x) && (1..15).contains(&y) && (1..15).contains(&z);
+                let light = lights
+                    .iter()
+                    .any(|&[lx, ly, lz]| (lx..lx + 4).contains(&x) && (ly..ly + 4).contains(&y) && z == lz);
+                room && !light
+            });
+            let x = Complex::from_voxels(&set);
+            assert_eq!(betti(&x), (1, 0, lights.len() as i64), "each light makes a cavity");
+            let s = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]).unwrap();
+            assert!(s.is_curvilinear(), "{:?}", s.face_counts());
+            assert_eq!(betti(&s).0, 1);
+            assert_eq!(betti(&s).2, 0);
+        }
     }
 
     /// The skeleton is a fixed point: thinning it again with its constraint set removes
@@ -1571,13 +1576,13 @@ mod tests {
             set_from([24, 7, 7], 1.0, |x, y, z| (1..23).contains(&x) && (1..6).contains(&y) && (1..6).contains(&z));
         let corner = set.spec.index(21, 1, 1);
         let reaches = |s: &Complex| s.cells[s.index([42, 2, 2])];
-        let (plain, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]).unwrap();
+        let plain = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[]).unwrap();
         assert!(!reaches(&plain));
-        let (anchored, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[corner]).unwrap();
+        let anchored = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[corner]).unwrap();
         assert!(reaches(&anchored) && anchored.is_curvilinear());
         assert_eq!(betti(&anchored), (1, 0, 0));
         // An anchor outside the set changes nothing.
-        let (outside, _) = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[set.spec.index(0, 0, 0)]).unwrap();
+        let outside = curvilinear_skeleton(&set, EdgeConstraint::Thesis, &[set.spec.index(0, 0, 0)]).unwrap();
         assert_eq!(outside, plain);
     }
 
@@ -1590,7 +1595,7 @@ mod tests {
             outer && !hole
         });
         for constraint in [EdgeConstraint::Thesis, EdgeConstraint::ReleasedCode] {
-            let (s, _) = curvilinear_skeleton(&set, constraint, &[]).unwrap();
+            let s = curvilinear_skeleton(&set, constraint, &[]).unwrap();
             assert!(s.is_curvilinear(), "{constraint:?}: {:?}", s.face_counts());
             assert_eq!(betti(&s), (1, 1, 0), "{constraint:?}");
         }
