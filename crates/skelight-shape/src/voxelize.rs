@@ -23,28 +23,50 @@ fn dot(a: V, b: V) -> f64 {
 /// Whether triangle `t` overlaps the box of half-size `h` centred at `c` (Akenine-Möller's
 /// 13-axis separating-axis test; touching counts as overlapping).
 pub fn triangle_overlaps_box(t: &[V; 3], c: V, h: V) -> bool {
-    let v = [sub(t[0], c), sub(t[1], c), sub(t[2], c)];
-    let e = [sub(v[1], v[0]), sub(v[2], v[1]), sub(v[0], v[2])];
-    let separated = |axis: V| -> bool {
-        if axis == [0.0; 3] {
-            return false;
-        }
-        let p = [dot(v[0], axis), dot(v[1], axis), dot(v[2], axis)];
-        let r = h[0] * axis[0].abs() + h[1] * axis[1].abs() + h[2] * axis[2].abs();
-        p.iter().cloned().fold(f64::INFINITY, f64::min) > r || p.iter().cloned().fold(f64::NEG_INFINITY, f64::max) < -r
-    };
-    let units = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for u in units {
-        for ed in e {
-            if separated(cross(u, ed)) {
-                return false;
+    SeparatingAxes::new(t, h).overlap(c)
+}
+
+/// A triangle's separating axes for boxes of one size: the three box normals, the
+/// triangle's edges crossed with them, and its normal, each with the interval the triangle
+/// projects to and the box's projected half-width. Testing a box is then one dot product
+/// and two comparisons per axis, where moving the triangle to the box's centre first costs
+/// ~40 flops per axis (door: 355 k box tests for 20 k triangles; the stage took 12–13 ms
+/// that way, 6 this way, in fixed arrays: collected into a vector, the axes alone took 7).
+pub struct SeparatingAxes {
+    /// (axis, least and greatest projection of the triangle, the box's half-width on it).
+    /// A zero axis (an edge along a box normal, a degenerate triangle) separates nothing:
+    /// its interval and the box's always meet.
+    axes: [(V, f64, f64, f64); 13],
+}
+
+impl SeparatingAxes {
+    pub fn new(t: &[V; 3], h: V) -> SeparatingAxes {
+        let e = [sub(t[1], t[0]), sub(t[2], t[1]), sub(t[0], t[2])];
+        let mut axes = [[0.0; 3]; 13];
+        for a in 0..3 {
+            axes[a][a] = 1.0;
+            for (k, &ed) in e.iter().enumerate() {
+                axes[3 + 3 * a + k] = cross(axes[a], ed);
             }
         }
-        if separated(u) {
-            return false;
+        axes[12] = cross(e[0], e[1]);
+        SeparatingAxes {
+            axes: axes.map(|axis| {
+                let p = t.map(|v| dot(v, axis));
+                let r = h[0] * axis[0].abs() + h[1] * axis[1].abs() + h[2] * axis[2].abs();
+                (axis, p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]), r)
+            }),
         }
     }
-    !separated(cross(e[0], e[1]))
+
+    /// Whether the triangle overlaps the box centred at `c`.
+    #[inline]
+    pub fn overlap(&self, c: V) -> bool {
+        self.axes.iter().all(|&(axis, lo, hi, r)| {
+            let s = dot(c, axis);
+            lo <= s + r && hi >= s - r
+        })
+    }
 }
 
 /// How far, in voxels, a triangle's bounding box is grown before its voxels are tested:
@@ -78,11 +100,12 @@ pub fn voxelize(spec: &GridSpec, triangles: &[[V; 3]]) -> Grid<bool> {
             lo[i] = a.max(0.0) as usize;
             hi[i] = (b as usize).min(spec.dims[i] - 1);
         }
+        let axes = SeparatingAxes::new(t, [h; 3]);
         let plane = |z: usize| {
             for y in lo[1]..=hi[1] {
                 for x in lo[0]..=hi[0] {
                     let i = spec.index(x, y, z);
-                    if !full[i].load(Ordering::Relaxed) && triangle_overlaps_box(t, spec.center(x, y, z), [h; 3]) {
+                    if !full[i].load(Ordering::Relaxed) && axes.overlap(spec.center(x, y, z)) {
                         full[i].store(true, Ordering::Relaxed);
                     }
                 }
@@ -117,6 +140,45 @@ mod tests {
         // Beyond the hypotenuse: only the edge-cross-axis tests separate it.
         assert!(!triangle_overlaps_box(&t, [0.7, 0.7, 0.0], [0.1; 3]));
         assert!(triangle_overlaps_box(&t, [0.55, 0.55, 0.0], [0.1; 3]));
+    }
+
+    /// The 13-axis test written out directly: the triangle moved to the box's centre, each
+    /// axis projected and compared.
+    fn moved_to_the_box(t: &[V; 3], c: V, h: V) -> bool {
+        let v = [sub(t[0], c), sub(t[1], c), sub(t[2], c)];
+        let e = [sub(v[1], v[0]), sub(v[2], v[1]), sub(v[0], v[2])];
+        let separated = |axis: V| -> bool {
+            let p = v.map(|v| dot(v, axis));
+            let r = h[0] * axis[0].abs() + h[1] * axis[1].abs() + h[2] * axis[2].abs();
+            axis != [0.0; 3] && (p[0].min(p[1]).min(p[2]) > r || p[0].max(p[1]).max(p[2]) < -r)
+        };
+        let units = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let mut axes = units.to_vec();
+        axes.extend(units.iter().flat_map(|&u| e.map(|ed| cross(u, ed))));
+        axes.push(cross(e[0], e[1]));
+        !axes.into_iter().any(separated)
+    }
+
+    /// The precomputed axes agree with the test written out, for random triangles and boxes
+    /// near them (off any lattice, so that no case is a tie that rounding could tip).
+    #[test]
+    fn precomputed_axes_agree_with_the_direct_test() {
+        let mut r = crate::testing::Lcg(29);
+        let mut point = |scale: f64| [0; 3].map(|_| (r.next() - 0.5) * scale);
+        let (mut inside, mut total) = (0, 0);
+        for _ in 0..2000 {
+            let t = [point(2.0), point(2.0), point(2.0)];
+            let h = [0.1 + point(0.4)[0].abs(); 3];
+            let axes = SeparatingAxes::new(&t, h);
+            for _ in 0..20 {
+                let c = point(1.2);
+                let expected = moved_to_the_box(&t, c, h);
+                assert_eq!(axes.overlap(c), expected, "triangle {t:?}, box at {c:?} half-size {h:?}");
+                inside += usize::from(expected);
+                total += 1;
+            }
+        }
+        assert!(inside > total / 10 && inside < total * 9 / 10, "{inside} of {total} overlap: too one-sided to tell");
     }
 
     /// A wall far thinner than a voxel still separates the two halves of the grid.
