@@ -43,30 +43,53 @@ pub fn portals(l: &Labelling) -> Vec<Portal> {
     let [_, _, nz] = spec.dims;
     // Voxel by voxel in index order; coordinates follow the loops, and a voxel's centre is
     // computed only where it has a portal face (few do).
+    let mut visit = |x: usize, y: usize, z: usize| {
+        let i = spec.index(x, y, z);
+        let a = labels[i];
+        if a == NO_LABEL {
+            return;
+        }
+        // Each face once: towards +x, +y, +z.
+        let ahead = [(x + 1 < nx, 1), (y + 1 < ny, nx), (z + 1 < nz, nx * ny)];
+        for (axis, &(inside, step)) in ahead.iter().enumerate() {
+            let b = if inside { labels[i + step] } else { NO_LABEL };
+            if b == NO_LABEL || b == a {
+                continue;
+            }
+            let c = spec.center(x, y, z);
+            let (from, to, sign) = if a < b { (a, b, 1.0) } else { (b, a, -1.0) };
+            let e = acc.entry((from, to)).or_default();
+            e.faces += 1;
+            e.squares.push((i, axis as u8));
+            for (k, sum) in e.centres.iter_mut().enumerate() {
+                *sum += c[k] + if k == axis { 0.5 * spec.voxel } else { 0.0 };
+            }
+            e.normals[axis] += sign;
+        }
+    };
+    // Few voxels have a portal face ahead of them: blocks of a row without one are passed
+    // over by one vectorised test (door: 4.2 ms voxel by voxel, 1.8 so).
+    const BLOCK: usize = 16;
+    let mut next = vec![NO_LABEL; nx];
     for z in 0..nz {
         for y in 0..ny {
-            for x in 0..nx {
-                let i = spec.index(x, y, z);
-                let a = labels[i];
-                if a == NO_LABEL {
-                    continue;
-                }
-                // Each face once: towards +x, +y, +z.
-                let ahead = [(x + 1 < nx, 1), (y + 1 < ny, nx), (z + 1 < nz, nx * ny)];
-                for (axis, &(inside, step)) in ahead.iter().enumerate() {
-                    let b = if inside { labels[i + step] } else { NO_LABEL };
-                    if b == NO_LABEL || b == a {
-                        continue;
-                    }
-                    let c = spec.center(x, y, z);
-                    let (from, to, sign) = if a < b { (a, b, 1.0) } else { (b, a, -1.0) };
-                    let e = acc.entry((from, to)).or_default();
-                    e.faces += 1;
-                    e.squares.push((i, axis as u8));
-                    for (k, sum) in e.centres.iter_mut().enumerate() {
-                        *sum += c[k] + if k == axis { 0.5 * spec.voxel } else { 0.0 };
-                    }
-                    e.normals[axis] += sign;
+            let here = l.labels.row(y, z);
+            // Beyond the grid the labels are taken as equal: no face there is a portal's.
+            let up = l.labels.row_at(y as isize + 1, z as isize).unwrap_or(here);
+            let ahead = l.labels.row_at(y as isize, z as isize + 1).unwrap_or(here);
+            next[..nx - 1].copy_from_slice(&here[1..]);
+            next[nx - 1] = here[nx - 1];
+            let blocks = here.chunks(BLOCK).zip(next.chunks(BLOCK)).zip(up.chunks(BLOCK).zip(ahead.chunks(BLOCK)));
+            for (b, ((here, next), (up, ahead))) in blocks.enumerate() {
+                let ahead_of = next.iter().zip(up).zip(ahead);
+                // A face is a portal's where both labels are regions' and differ.
+                let portal = |a: u32, b: u32| (a != b) & (a != NO_LABEL) & (b != NO_LABEL);
+                let differs = here
+                    .iter()
+                    .zip(ahead_of)
+                    .fold(false, |any, (&a, ((&n, &u), &f))| any | portal(a, n) | portal(a, u) | portal(a, f));
+                if differs {
+                    (b * BLOCK..b * BLOCK + here.len()).for_each(|x| visit(x, y, z));
                 }
             }
         }
@@ -136,5 +159,46 @@ mod tests {
             }
         }
         assert_eq!(l.count as usize, 2 + ps.len() - 1);
+    }
+
+    /// Every face between 6-adjacent voxels of two regions, found by looking at every pair
+    /// of neighbours, lies in the portal of those regions, and no other face does. Labels
+    /// in slabs along each axis in turn (so portals face along every axis), with scattered
+    /// voxels outside the set and rows whose length is no multiple of a block.
+    #[test]
+    fn portals_hold_exactly_the_faces_between_regions() {
+        use crate::grid::{Grid, GridSpec};
+        let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims: [37, 11, 9] };
+        let [nx, ny, nz] = spec.dims;
+        let mut r = crate::testing::Lcg(5);
+        for axis in 0..3 {
+            let mut data = Vec::new();
+            for z in 0..nz {
+                for y in 0..ny {
+                    for x in 0..nx {
+                        let c = [x, y, z][axis];
+                        data.push(if r.next() < 0.03 { NO_LABEL } else { 1 + (c / 4) as u32 % 3 });
+                    }
+                }
+            }
+            let l = Labelling { labels: Grid { spec, data }, count: 3 };
+            let mut expected: BTreeMap<(u32, u32), Vec<(usize, u8)>> = BTreeMap::new();
+            for i in 0..spec.len() {
+                let p = spec.coords(i);
+                for (a, step) in [1, nx, nx * ny].into_iter().enumerate() {
+                    if p[a] + 1 == spec.dims[a] {
+                        continue;
+                    }
+                    let (u, v) = (l.labels.data[i], l.labels.data[i + step]);
+                    if u != NO_LABEL && v != NO_LABEL && u != v {
+                        expected.entry((u.min(v), u.max(v))).or_default().push((i, a as u8));
+                    }
+                }
+            }
+            let found: BTreeMap<(u32, u32), Vec<(usize, u8)>> =
+                portals(&l).into_iter().map(|p| ((p.from, p.to), p.squares)).collect();
+            assert!(expected.values().map(Vec::len).sum::<usize>() > 100, "axis {axis}: too few faces to tell");
+            assert_eq!(found, expected, "regions in slabs along axis {axis}");
+        }
     }
 }
