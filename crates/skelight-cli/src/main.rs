@@ -726,7 +726,25 @@ fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
     Ok(())
 }
 
+/// Keeps freed memory in the process rather than handing it back to the kernel. The analysis
+/// allocates and frees arrays of up to tens of MB stage after stage, and by default glibc
+/// maps each afresh and unmaps it on free, so every page of every array costs a fault
+/// (door, thesis grid, cold runs: 0.210–0.228 → 0.197–0.208 s; peak memory +12 MB).
+/// Arrays above 32 MB are still mapped on their own and returned when freed.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn keep_freed_memory() {
+    // SAFETY: mallopt only sets glibc's allocation thresholds; no thread has started yet.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, libc::c_int::MAX);
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn keep_freed_memory() {}
+
 fn main() {
+    keep_freed_memory();
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Render(a) => render(a),
