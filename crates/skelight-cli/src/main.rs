@@ -729,7 +729,8 @@ fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
 /// Keeps freed memory in the process rather than handing it back to the kernel. The analysis
 /// allocates and frees arrays of up to tens of MB stage after stage, and by default glibc
 /// maps each afresh and unmaps it on free, so every page of every array costs a fault
-/// (door, thesis grid, cold runs: 0.210–0.228 → 0.197–0.208 s; peak memory +12 MB).
+/// (cold runs, alternating: door on the thesis grid 0.223–0.264 → 0.199–0.234 s, peak
+/// 134 → 152 MB; veach-ajar at 364 1.17–1.23 → 1.03–1.09 s, peak +17 MB).
 /// Arrays above 32 MB are still mapped on their own and returned when freed.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 fn keep_freed_memory() {

@@ -55,7 +55,7 @@ impl Complex {
                 merged.fill(false);
                 for z in zs.clone() {
                     for y in voxel_span(py, h) {
-                        for (m, &inside) in merged.iter_mut().zip(&set.data[(z * h + y) * w..][..w]) {
+                        for (m, &inside) in merged.iter_mut().zip(set.row(y, z)) {
                             *m |= inside;
                         }
                     }
