@@ -1,5 +1,7 @@
 //! Dense 3D voxel grids over an axis-aligned box of the scene.
 
+use std::mem::MaybeUninit;
+
 /// Where a grid sits in the world: origin of voxel (0,0,0)'s lower corner, cubic voxel size
 /// and dimensions.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -285,29 +287,61 @@ impl Padded {
         (z + 1) * self.plane + (y + 1) * self.row + 1
     }
 
-    /// The padded array of `map` over `data` (one value per voxel), padding set to `fill`.
-    pub(crate) fn pad<T: Copy, U: Copy>(&self, data: &[T], fill: U, map: impl Fn(T) -> U) -> Vec<U> {
-        let [nx, ny, _] = self.dims;
-        let mut out = vec![fill; self.len()];
-        for (k, row) in data.chunks(nx).enumerate() {
-            let at = self.row_start(k % ny, k / ny);
-            out[at..at + nx].iter_mut().zip(row).for_each(|(o, &v)| *o = map(v));
-        }
-        out
+    /// The padded array of `map` over `data` (one value per voxel), padding set to `fill`,
+    /// built plane by plane in parallel.
+    pub(crate) fn pad<T: Copy + Sync, U: Copy + Send + Sync>(
+        &self,
+        data: &[T],
+        fill: U,
+        map: impl Fn(T) -> U + Sync,
+    ) -> Vec<U> {
+        let [nx, ny, nz] = self.dims;
+        par_planes_vec(self.len(), self.plane, |pz, plane| {
+            for (py, row) in plane.chunks_mut(self.row).enumerate() {
+                if (1..=nz).contains(&pz) && (1..=ny).contains(&py) {
+                    let voxels = &data[((pz - 1) * ny + py - 1) * nx..][..nx];
+                    row[0].write(fill);
+                    row[1..=nx].iter_mut().zip(voxels).for_each(|(o, &v)| {
+                        o.write(map(v));
+                    });
+                    row[nx + 1].write(fill);
+                } else {
+                    row.iter_mut().for_each(|o| {
+                        o.write(fill);
+                    });
+                }
+            }
+        })
     }
 
-    /// The voxels' values of a padded array, in the grid's order.
-    pub(crate) fn unpad<T: Copy>(&self, padded: &[T]) -> Vec<T> {
+    /// The voxels' values of a padded array, in the grid's order, plane by plane in parallel.
+    pub(crate) fn unpad<T: Copy + Send + Sync>(&self, padded: &[T]) -> Vec<T> {
         let [nx, ny, nz] = self.dims;
-        let mut out = Vec::with_capacity(nx * ny * nz);
-        for z in 0..nz {
-            for y in 0..ny {
+        par_planes_vec(nx * ny * nz, nx * ny, |z, plane| {
+            for (y, row) in plane.chunks_mut(nx).enumerate() {
                 let at = self.row_start(y, z);
-                out.extend_from_slice(&padded[at..at + nx]);
+                row.iter_mut().zip(&padded[at..at + nx]).for_each(|(o, &v)| {
+                    o.write(v);
+                });
             }
-        }
-        out
+        })
     }
+}
+
+/// A vector of `len` values made by `fill(k, part)` for its parts of `plane` values (the
+/// last may be shorter), in parallel. `fill` must write every value of its part. Written
+/// straight into the fresh vector: filling it first, or collecting parts and joining them,
+/// would be one more pass over memory, on one thread.
+fn par_planes_vec<U: Send>(len: usize, plane: usize, fill: impl Fn(usize, &mut [MaybeUninit<U>]) + Sync) -> Vec<U> {
+    use rayon::prelude::*;
+    let mut out = Vec::with_capacity(len);
+    if len > 0 {
+        out.spare_capacity_mut()[..len].par_chunks_mut(plane).enumerate().for_each(|(k, part)| fill(k, part));
+    }
+    // SAFETY: the first `len` values were all written above (`fill`'s contract), and the
+    // capacity is at least `len`.
+    unsafe { out.set_len(len) };
+    out
 }
 
 /// Linear indices of the 6-neighbours of voxel `i` inside the grid.

@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use crate::complex::Complex;
-use crate::distance::{chessboard, EuclideanPlanes};
+use crate::distance::{chessboard, EuclideanRows};
 use crate::grid::{scanline_fill, Grid, GridError, GridSpec};
 use crate::labeling::{opening_forest_labelling, Labelling};
 use crate::mapping::NodeMapping;
@@ -146,8 +146,8 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     }
     lap("voxelise", &mut timings);
     // Independent: the Euclidean map beside the chessboard and opening. The Euclidean one
-    // is wanted only at the skeleton's nodes, so its last pass waits for them.
-    let (edt, open) = rayon::join(|| EuclideanPlanes::new(&empty, true), || opening(&chessboard(&empty, true)));
+    // is wanted only at the skeleton's nodes, so only its pass along x is made here.
+    let (edt, open) = rayon::join(|| EuclideanRows::new(&empty, true), || opening(&chessboard(&empty, true)));
     lap("distance and opening maps", &mut timings);
     let anchor_voxels: Vec<Option<usize>> = settings.anchors.iter().map(|a| nearest_empty_voxel(&empty, a)).collect();
     let anchors: Vec<usize> = anchor_voxels.iter().flatten().copied().collect();
