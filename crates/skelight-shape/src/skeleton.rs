@@ -38,7 +38,7 @@ impl SkeletonGraph {
         let mut graph = SkeletonGraph::default();
         let mut node_at: Vec<(usize, u32)> = Vec::new();
         // The empty voxel around each vertex farthest from the scene. `edt` may search (see
-        // [`crate::distance::EuclideanRows::at`]): each voxel is asked once (door: 4 k for
+        // [`crate::distance::EuclideanRows::at`]): each voxel is asked once (door: 3.2 k for
         // 8 k vertex-voxel pairs), in parallel.
         let vertices = par_flagged_positions(&x.cells, |i| x.dim(i) == 0);
         let mut voxels: Vec<usize> =
