@@ -16,30 +16,29 @@ pub struct Labelling {
 
 /// Def. 10.8–10.9: labels the region roots, then propagates along the forest.
 pub fn opening_forest_labelling(o: &Opening) -> Labelling {
-    let spec = o.radius.spec;
-    let (radius, centre) = (&o.radius.data, &o.centre.data);
+    let spec = o.spec;
     let n = spec.len();
     let mut labels = vec![NO_LABEL; n];
-    let is_root = |i: usize| radius[i] > 0 && centre[i] as usize == i;
+    let is_root = |i: usize| o.radius(i) > 0 && o.centre(i) == i;
     let mut count = 0;
     for seed in 0..n {
         if !is_root(seed) || labels[seed] != NO_LABEL {
             continue;
         }
         count += 1;
-        let r = radius[seed];
-        scanline_fill(spec.dims, &mut labels, [NO_LABEL, count], |j| is_root(j) && radius[j] == r, vec![seed]);
+        let r = o.radius(seed);
+        scanline_fill(spec.dims, &mut labels, [NO_LABEL, count], |j| is_root(j) && o.radius(j) == r, vec![seed]);
     }
     // Along a chain x → f(x) → … the opening strictly grows until a root, so chains end.
     let mut chain = Vec::new();
     for start in 0..n {
-        if radius[start] == 0 || labels[start] != NO_LABEL {
+        if o.radius(start) == 0 || labels[start] != NO_LABEL {
             continue;
         }
         let mut i = start;
         while labels[i] == NO_LABEL {
             chain.push(i);
-            i = centre[i] as usize;
+            i = o.centre(i);
         }
         let label = labels[i];
         for j in chain.drain(..) {

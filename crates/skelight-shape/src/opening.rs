@@ -11,15 +11,30 @@ use std::collections::VecDeque;
 use crate::distance::par_lines;
 use rayon::prelude::*;
 
-use crate::grid::{axis_neighbours, Grid, Padded};
+use crate::grid::{axis_neighbours, Grid, GridSpec, Padded};
 
 /// The opening map and an opening forest.
 pub struct Opening {
-    /// π(x): radius of the largest maximal ball containing x (0 outside the set).
-    pub radius: Grid<u32>,
-    /// Linear index of the centre of a maximal ball of radius π(x) containing x; x itself
-    /// exactly when π(x) = D(x) (Def. 10.7).
-    pub centre: Grid<u32>,
+    pub spec: GridSpec,
+    /// (π(x), centre) of every voxel x, side by side as the dilation leaves them: the
+    /// labelling reads both, and parting them took a serial pass and twice the memory.
+    balls: Vec<(u32, u32)>,
+}
+
+impl Opening {
+    /// π(x) of voxel `x` (linear index): the radius of the largest maximal ball containing
+    /// it, 0 outside the set.
+    #[inline]
+    pub fn radius(&self, x: usize) -> u32 {
+        self.balls[x].0
+    }
+
+    /// The linear index of the centre of a maximal ball of radius π(x) containing voxel
+    /// `x`: x itself exactly when π(x) = D(x) (Def. 10.7).
+    #[inline]
+    pub fn centre(&self, x: usize) -> usize {
+        self.balls[x].1 as usize
+    }
 }
 
 /// Computes the opening map and forest from the chessboard distance map `distance`
@@ -28,7 +43,7 @@ pub fn opening(distance: &Grid<u32>) -> Opening {
     let spec = distance.spec;
     assert!(spec.len() <= u32::MAX as usize, "grid too large for 32-bit voxel indices");
     // Radius and centre side by side, so that a line is one slice.
-    let mut balls: Vec<(u32, u32)> = distance.data.iter().zip(0..spec.len() as u32).map(|(&r, c)| (r, c)).collect();
+    let mut balls: Vec<(u32, u32)> = distance.data.par_iter().enumerate().map(|(c, &r)| (r, c as u32)).collect();
     for axis in 0..3 {
         par_lines(&mut balls, spec.dims, axis, |line| {
             let mut queue = VecDeque::new();
@@ -36,8 +51,7 @@ pub fn opening(distance: &Grid<u32>) -> Opening {
             dilate_line(line.iter_mut().rev(), &mut queue);
         });
     }
-    let (radius, centre) = balls.into_iter().unzip();
-    Opening { radius: Grid { spec, data: radius }, centre: Grid { spec, data: centre } }
+    Opening { spec, balls }
 }
 
 /// A ball seen along one line: its radius, its centre and the first position (counted in
@@ -346,11 +360,11 @@ mod tests {
                             .map(|y| d.data[y])
                             .max()
                             .unwrap_or(0);
-                        assert_eq!(o.radius.data[x], expected, "{dims:?} {density} {border}: opening at {cx:?}");
+                        assert_eq!(o.radius(x), expected, "{dims:?} {density} {border}: opening at {cx:?}");
                         if expected == 0 {
                             continue;
                         }
-                        let c = o.centre.data[x] as usize;
+                        let c = o.centre(x);
                         assert_eq!(d.data[c], expected, "the forest links to a ball of radius π(x)");
                         assert!(chebyshev(cx, coords(&spec, c)) < d.data[c] as u64, "x lies in its parent's ball");
                         assert_eq!(c == x, expected == d.data[x], "roots are exactly the voxels with π = D");
@@ -428,9 +442,9 @@ mod tests {
         });
         let spec = set.spec;
         let o = opening(&chessboard(&set, true));
-        assert_eq!(*o.radius.get(1, 1, 1), 5);
-        assert_eq!(*o.centre.get(1, 1, 1) as usize, spec.index(5, 5, 5));
-        assert_eq!(*o.radius.get(15, 5, 5), 2);
-        assert_eq!(*o.radius.get(0, 0, 0), 0);
+        assert_eq!(o.radius(spec.index(1, 1, 1)), 5);
+        assert_eq!(o.centre(spec.index(1, 1, 1)), spec.index(5, 5, 5));
+        assert_eq!(o.radius(spec.index(15, 5, 5)), 2);
+        assert_eq!(o.radius(spec.index(0, 0, 0)), 0);
     }
 }
