@@ -13,9 +13,8 @@ const INF: u32 = u32::MAX / 4;
 
 /// Calls `f` on every line of the grid along `axis` (dimensions `dims`, x fastest), each
 /// as a contiguous slice from its low end, lines in parallel. Lines along y and z are
-/// copied into a buffer and back, so that each task owns its lines as slices (on one
-/// thread this costs no more than stepping through them in place). Lines along z are
-/// grouped by y: the rows a group copies from stay in the cache from one column to the next.
+/// copied into a buffer and back, so that each task owns its lines as slices: a task takes
+/// the lines of one plane (y) or of one y across the planes (z), all the rows they cross.
 pub(crate) fn par_lines<T: Copy + Send + Sync>(
     data: &mut [T],
     dims: [usize; 3],
@@ -26,14 +25,23 @@ pub(crate) fn par_lines<T: Copy + Send + Sync>(
     if data.is_empty() {
         return;
     }
-    // The lines crossing `rows` (voxel rows in order along the axis), one per x.
+    // The lines crossing `rows` (voxel rows in order along the axis), one per x: copied
+    // out into one buffer line after line, dilated there and copied back. Whole rows are
+    // read and written in order; one line at a time cost a value and a row pointer per
+    // voxel, each row in a plane of its own (door opening, one thread: 45.5 -> 39 ms).
     let columns = |rows: &mut [&mut [T]], buffer: &mut Vec<T>| {
-        for x in 0..nx {
-            buffer.clear();
-            buffer.extend(rows.iter().map(|row| row[x]));
-            f(buffer);
-            for (row, &v) in rows.iter_mut().zip(buffer.iter()) {
-                row[x] = v;
+        let n = rows.len();
+        buffer.clear();
+        buffer.resize(nx * n, rows[0][0]);
+        for (k, row) in rows.iter().enumerate() {
+            for (x, &v) in row.iter().enumerate() {
+                buffer[x * n + k] = v;
+            }
+        }
+        buffer.chunks_exact_mut(n).for_each(&f);
+        for (k, row) in rows.iter_mut().enumerate() {
+            for (x, v) in row.iter_mut().enumerate() {
+                *v = buffer[x * n + k];
             }
         }
     };
@@ -41,9 +49,11 @@ pub(crate) fn par_lines<T: Copy + Send + Sync>(
         0 => data.par_chunks_mut(nx).for_each(&f),
         1 => data.par_chunks_mut(nx * ny).for_each(|plane| {
             let mut rows: Vec<&mut [T]> = plane.chunks_mut(nx).collect();
-            columns(&mut rows, &mut Vec::with_capacity(ny));
+            columns(&mut rows, &mut Vec::with_capacity(nx * ny));
         }),
-        _ => rows_by_y(data, dims).into_par_iter().for_each(|mut rows| columns(&mut rows, &mut Vec::with_capacity(nz))),
+        _ => rows_by_y(data, dims)
+            .into_par_iter()
+            .for_each(|mut rows| columns(&mut rows, &mut Vec::with_capacity(nx * nz))),
     }
 }
 
