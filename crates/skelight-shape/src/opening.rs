@@ -65,33 +65,35 @@ struct LineBall {
 
 /// Alg. 7 on one line of (radius, centre) pairs, in the order given (forwards or
 /// backwards): every voxel takes the largest ball, among those met so far, that still
-/// covers it. The queue holds candidates by decreasing radius and increasing reach; at
-/// equal radius the voxel's own entry wins, so a voxel whose own ball is the largest stays a
-/// root.
-fn dilate_line<'a>(line: impl Iterator<Item = &'a mut (u32, u32)>, queue: &mut VecDeque<LineBall>) {
-    queue.clear();
+/// covers it. The candidates are held by decreasing radius and increasing reach: the
+/// largest, the one each voxel takes, in `front`, and those behind it in `rest`; at equal
+/// radius the voxel's own entry wins, so a voxel whose own ball is the largest stays a
+/// root. Holding the front apart keeps the common cases (a voxel starting a new front, or
+/// taking the one held) in registers: with the whole queue in a `VecDeque`, each voxel
+/// read its answer back from the queue's memory (door opening, one thread: 39 -> 24.5 ms).
+/// A radius-0 voxel (outside the set) ends every ball, as balls lie inside the set; it is
+/// taken as its own front all the same, so the lines need not come from a distance map.
+fn dilate_line<'a>(line: impl Iterator<Item = &'a mut (u32, u32)>, rest: &mut VecDeque<LineBall>) {
+    // Radius 0: no ball (any voxel's ball replaces it).
+    const NONE: LineBall = LineBall { radius: 0, centre: 0, end: 0 };
+    let mut front = NONE;
+    rest.clear();
     for (step, ball) in line.enumerate() {
         let current = LineBall { radius: ball.0, centre: ball.1, end: step as u64 + ball.0 as u64 };
-        if current.radius == 0 {
-            queue.clear();
-        } else if queue.front().is_some_and(|f| f.end == step as u64) {
-            queue.pop_front();
+        if front.end == step as u64 {
+            front = rest.pop_front().unwrap_or(NONE);
         }
-        match queue.front() {
-            Some(front) if current.radius < front.radius => {
-                while queue.back().is_some_and(|b| current.radius >= b.radius) {
-                    queue.pop_back();
-                }
-                if queue.back().is_none_or(|b| b.end < current.end) {
-                    queue.push_back(current);
-                }
+        if current.radius != 0 && current.radius < front.radius {
+            while rest.back().is_some_and(|b| current.radius >= b.radius) {
+                rest.pop_back();
             }
-            _ => {
-                queue.clear();
-                queue.push_back(current);
+            if rest.back().unwrap_or(&front).end < current.end {
+                rest.push_back(current);
             }
+        } else {
+            rest.clear();
+            front = current;
         }
-        let front = queue.front().expect("the queue holds at least the current voxel's ball or a larger one");
         *ball = (front.radius, front.centre);
     }
 }
