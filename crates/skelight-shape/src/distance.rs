@@ -210,16 +210,27 @@ fn chessboard_plane(
         for (x, b) in before.iter_mut().enumerate() {
             *b = cur[same + x].min(back[row - px + x]).min(back[row + x]).min(back[row + px + x]);
         }
-        let mut scan = |x: usize, prev: usize| {
-            let m = before[x - 1].min(before[x]).min(before[x + 1]).min(cur[row + prev]);
-            let old = cur[row + x];
-            cur[row + x] = old.min(m + 1);
-            fell |= m + 1 < old;
+        // Each voxel takes the least of its twelve neighbours before it outside its row,
+        // plus one, in a loop that vectorises; then its neighbour before it in the row, a
+        // running minimum whose chain is two operations a voxel, not five as when the two
+        // went together (door chessboard, one thread: 8.7 -> 7.9 ms).
+        let here = &mut cur[row..row + px];
+        for (h, b) in here[1..=nx].iter_mut().zip(before.windows(3)) {
+            let v = (*h).min(b[0].min(b[1]).min(b[2]) + 1);
+            fell |= v < *h;
+            *h = v;
+        }
+        let run = |prev: u32, h: &mut u32| {
+            let v = (*h).min(prev + 1);
+            fell |= v < *h;
+            *h = v;
+            v
         };
+        let (first, last) = (here[0], here[nx + 1]);
         if forward {
-            (1..=nx).for_each(|x| scan(x, x - 1));
+            here[1..=nx].iter_mut().fold(first, run);
         } else {
-            (1..=nx).rev().for_each(|x| scan(x, x + 1));
+            here[1..=nx].iter_mut().rev().fold(last, run);
         }
     }
     fell
