@@ -26,8 +26,8 @@ pub(crate) fn par_lines<T: Copy + Send + Sync>(
         return;
     }
     // The lines crossing `rows` (voxel rows in order along the axis), one per x: copied
-    // out into one buffer line after line, dilated there and copied back. Whole rows are
-    // read and written in order; one line at a time cost a value and a row pointer per
+    // out into one buffer line after line, handed to `f` there and copied back. Whole rows
+    // are read and written in order; one line at a time cost a value and a row pointer per
     // voxel, each row in a plane of its own (door opening, one thread: 45.5 -> 39 ms).
     let columns = |rows: &mut [&mut [T]], buffer: &mut Vec<T>| {
         let n = rows.len();

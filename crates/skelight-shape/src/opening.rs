@@ -46,9 +46,9 @@ pub fn opening(distance: &Grid<u32>) -> Opening {
     let mut balls: Vec<(u32, u32)> = distance.data.par_iter().enumerate().map(|(c, &r)| (r, c as u32)).collect();
     for axis in 0..3 {
         par_lines(&mut balls, spec.dims, axis, |line| {
-            let mut queue = VecDeque::new();
-            dilate_line(line.iter_mut(), &mut queue);
-            dilate_line(line.iter_mut().rev(), &mut queue);
+            let mut rest = VecDeque::new();
+            dilate_line(line.iter_mut(), &mut rest);
+            dilate_line(line.iter_mut().rev(), &mut rest);
         });
     }
     Opening { spec, balls }
