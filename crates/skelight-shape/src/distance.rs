@@ -216,15 +216,11 @@ fn chessboard_plane(
         // went together (door chessboard, one thread: 8.7 -> 7.9 ms).
         let here = &mut cur[row..row + px];
         for (h, b) in here[1..=nx].iter_mut().zip(before.windows(3)) {
-            let v = (*h).min(b[0].min(b[1]).min(b[2]) + 1);
-            fell |= v < *h;
-            *h = v;
+            fell |= lower_to(h, b[0].min(b[1]).min(b[2]) + 1);
         }
         let run = |prev: u32, h: &mut u32| {
-            let v = (*h).min(prev + 1);
-            fell |= v < *h;
-            *h = v;
-            v
+            fell |= lower_to(h, prev + 1);
+            *h
         };
         let (first, last) = (here[0], here[nx + 1]);
         if forward {
@@ -233,6 +229,16 @@ fn chessboard_plane(
             here[1..=nx].iter_mut().rev().fold(last, run);
         }
     }
+    fell
+}
+
+/// Lowers `h` to `v` if `v` is less; whether it fell. Branch-free, so that the loops over a
+/// row vectorise.
+#[inline(always)]
+fn lower_to(h: &mut u32, v: u32) -> bool {
+    let new = (*h).min(v);
+    let fell = new < *h;
+    *h = new;
     fell
 }
 
