@@ -151,23 +151,60 @@ impl<T: Clone> Grid<T> {
 
 /// The positions i where `flags[i]` and `pred(i)` hold, in increasing order, found in
 /// parallel by blocks (rayon's own `filter().collect()` costs about ten times more over
-/// millions of cells), reading the flags eight at a time and skipping those all false. For
+/// millions of cells), passing over runs of 64 false flags with one vectorised test. For
 /// the few faces left in a large complex after thinning (door: 58 850 of 15.6 M cells,
-/// 10.8 ms testing every cell, 1.4 ms this way).
+/// 10.8 ms testing every cell, 1.4 ms eight flags at a time, 0.5 ms 64 at a time).
 pub(crate) fn par_flagged_positions(flags: &[bool], pred: impl Fn(usize) -> bool + Sync) -> Vec<usize> {
     use rayon::prelude::*;
     const BLOCK: usize = 1 << 16;
+    const RUN: usize = 64;
     flags
         .par_chunks(BLOCK)
         .enumerate()
         .flat_map_iter(|(b, block)| {
-            let (words, rest) = block.as_chunks::<8>();
-            let nonzero = words.iter().enumerate().filter(|(_, w)| u64::from_ne_bytes(w.map(u8::from)) != 0);
-            let candidates =
-                nonzero.flat_map(|(k, _)| 8 * k..8 * k + 8).chain(8 * words.len()..8 * words.len() + rest.len());
-            candidates.filter(|&i| block[i]).map(move |i| b * BLOCK + i).filter(|&i| pred(i)).collect::<Vec<_>>()
+            let mut found = Vec::new();
+            for (r, run) in block.chunks(RUN).enumerate() {
+                if run.iter().fold(false, |any, &f| any | f) {
+                    let set = run.iter().enumerate().filter(|(_, &f)| f).map(|(i, _)| b * BLOCK + r * RUN + i);
+                    found.extend(set.filter(|&i| pred(i)));
+                }
+            }
+            found
         })
         .collect()
+}
+
+/// Bytes at positions below a bound, all 0 until written, held in pages made on the first
+/// write to each: for the states of a few faces scattered over a large complex. A whole
+/// `vec![0; n]` of them is no cheaper to set up than to fill, as the allocator reuses the
+/// analysis' freed memory and must clear it (door replay: 5.7 ms for a zone of 13 k faces).
+pub(crate) struct SparseBytes {
+    pages: Vec<Option<Box<[u8; SparseBytes::PAGE]>>>,
+}
+
+impl SparseBytes {
+    const PAGE: usize = 4096;
+
+    pub(crate) fn new(len: usize) -> SparseBytes {
+        SparseBytes { pages: (0..len.div_ceil(Self::PAGE)).map(|_| None).collect() }
+    }
+}
+
+impl std::ops::Index<usize> for SparseBytes {
+    type Output = u8;
+
+    #[inline]
+    fn index(&self, i: usize) -> &u8 {
+        self.pages[i / Self::PAGE].as_ref().map_or(&0, |page| &page[i % Self::PAGE])
+    }
+}
+
+impl std::ops::IndexMut<usize> for SparseBytes {
+    #[inline]
+    fn index_mut(&mut self, i: usize) -> &mut u8 {
+        let page = self.pages[i / Self::PAGE].get_or_insert_with(|| Box::new([0; Self::PAGE]));
+        &mut page[i % Self::PAGE]
+    }
 }
 
 /// A set of positions below a bound, one bit each: walks over a few faces of a large
@@ -365,7 +402,24 @@ pub fn neighbours6(dims: [usize; 3], i: usize) -> impl Iterator<Item = usize> {
 mod tests {
     use super::*;
 
-    /// Flags read eight at a time give the positions a plain filter gives: sparse and dense
+    /// Sparse bytes read 0 until written, and each write lands at its own position: on a
+    /// page's first and last byte, across pages, and where later writes share a page.
+    #[test]
+    fn sparse_bytes_hold_what_was_written() {
+        let len = 5 * SparseBytes::PAGE + 17;
+        let mut bytes = SparseBytes::new(len);
+        let mut plain = vec![0u8; len];
+        let mut r = crate::testing::Lcg(3);
+        let edges = [0, SparseBytes::PAGE - 1, SparseBytes::PAGE, 3 * SparseBytes::PAGE + 1, len - 1];
+        let random = (0..200).map(|_| (r.next() * len as f64) as usize);
+        for (k, i) in edges.into_iter().chain(random).enumerate() {
+            bytes[i] = bytes[i].wrapping_add(k as u8 | 1);
+            plain[i] = plain[i].wrapping_add(k as u8 | 1);
+        }
+        assert!((0..len).all(|i| bytes[i] == plain[i]));
+    }
+
+    /// Flags read in runs of 64 give the positions a plain filter gives: sparse and dense
     /// flags, lengths off the word and block sizes, a predicate that drops some.
     #[test]
     fn flagged_positions_are_those_of_a_filter() {

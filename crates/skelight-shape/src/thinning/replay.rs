@@ -18,7 +18,7 @@
 
 use super::{face_state, is_free, Dates, Neighbours, Pair, ALIVE, COUNT, NEVER, TYPE_SHIFT};
 use crate::complex::Complex;
-use crate::grid::BitSet;
+use crate::grid::{BitSet, SparseBytes};
 
 /// L1 radius, in the doubled grid, of the cells whose states decide whether a face goes in
 /// a layer. As the smaller face g of a pair: g's cofaces (1 step), that coface's facets
@@ -63,7 +63,7 @@ struct Replay<'a> {
     /// Every zone face, in the order it joined.
     members: Vec<usize>,
     /// State bytes of the zone's faces (see [`COUNT`](super::COUNT)); 0 elsewhere.
-    state: Vec<u8>,
+    state: SparseBytes,
     /// Zone faces by their death date: where the two runs may part if it is not kept.
     dies: Vec<Vec<usize>>,
     /// (zone face, coface outside the zone when it joined) by the coface's death date: the
@@ -101,7 +101,7 @@ impl<'a> Replay<'a> {
             zone: BitSet::new(n),
             grown: BitSet::new(n),
             members: Vec::new(),
-            state: vec![0; n],
+            state: SparseBytes::new(n),
             dies: vec![Vec::new(); last + 2],
             loses: vec![Vec::new(); last + 2],
             kept_dying,
