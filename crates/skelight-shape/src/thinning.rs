@@ -166,9 +166,9 @@ struct Slabs {
 }
 
 impl Slabs {
-    /// Two slabs per thread, each at least eight margins thick (or a single slab).
+    /// One slab per thread, each at least eight margins thick (or a single slab).
     fn new(x: &Complex) -> Slabs {
-        let wanted = 2 * rayon::current_num_threads();
+        let wanted = rayon::current_num_threads();
         let margin = 2 * x.strides()[2];
         Slabs::with_count(x, wanted.min(x.cells.len() / (8 * margin)).max(1))
     }
