@@ -45,9 +45,8 @@ impl Complex {
         let [w, h, d] = set.spec.dims;
         let dims = [2 * w + 1, 2 * h + 1, 2 * d + 1];
         let mut c = Complex { dims, cells: Vec::new() };
-        let mut cells = vec![false; (dims[0] + 2) * (dims[1] + 2) * (dims[2] + 2)];
         let sy = c.strides()[1];
-        c.par_planes_mut(&mut cells, |z, plane| {
+        c.cells = c.par_planes_new(false, |z, plane| {
             let zs = voxel_span(z, d);
             // Whether each voxel column of the row is in one of the voxel rows it lies in.
             let mut merged = vec![false; w];
@@ -72,16 +71,30 @@ impl Complex {
                 row[2 * w] = before;
             }
         });
-        c.cells = cells;
         c
     }
 
-    /// Calls `f(z, plane)` for every z plane of the doubled grid (`z` its doubled
-    /// coordinate) with that plane's cells of `out` (one value per array cell, padding rows
-    /// and columns included), planes in parallel.
-    pub fn par_planes_mut<T: Send>(&self, out: &mut [T], f: impl Fn(usize, &mut [T]) + Sync) {
+    /// A new array of one value per cell of the padded array (padding rows and columns
+    /// included), built plane by plane in parallel: each plane is set to `fill`, then
+    /// `f(z, plane)` writes what it wants into the planes of the doubled grid (`z` its
+    /// doubled coordinate). A plane is filled and written while it sits in the cache; a
+    /// zeroed allocation cleared the whole array first, on one thread (the allocator reuses
+    /// the analysis' freed memory: 1.6 ms for the door's 15.6 M cells).
+    pub fn par_planes_new<T: Copy + Send + Sync>(&self, fill: T, f: impl Fn(usize, &mut [T]) + Sync) -> Vec<T> {
         let sz = self.strides()[2];
-        out.par_chunks_mut(sz).enumerate().skip(1).take(self.dims[2]).for_each(|(pz, plane)| f(pz - 1, plane));
+        let len = sz * (self.dims[2] + 2);
+        let mut out = Vec::with_capacity(len);
+        out.spare_capacity_mut()[..len].par_chunks_mut(sz).enumerate().for_each(|(pz, plane)| {
+            plane.fill(std::mem::MaybeUninit::new(fill));
+            // SAFETY: every element of the plane was just written.
+            let plane = unsafe { std::slice::from_raw_parts_mut(plane.as_mut_ptr().cast::<T>(), plane.len()) };
+            if (1..=self.dims[2]).contains(&pz) {
+                f(pz - 1, plane);
+            }
+        });
+        // SAFETY: the planes cover the first `len` elements, and each was written above.
+        unsafe { out.set_len(len) };
+        out
     }
 
     /// Strides of the padded array along x, y and z.

@@ -563,9 +563,8 @@ fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
     let cells = &x.cells[..];
     let [_, sy, sz] = x.strides();
     let [nx, ny, _] = x.dims;
-    let mut state = vec![0u8; cells.len()];
     let keep_none = vec![false; nx];
-    x.par_planes_mut(&mut state, |z, plane| {
+    x.par_planes_new(0u8, |z, plane| {
         for y in 0..ny {
             let (even_y, even_z) = (u8::from(y & 1 == 0), u8::from(z & 1 == 0));
             let ty_yz = ((y & 1) << 1 | (z & 1) << 2) as u8;
@@ -588,8 +587,7 @@ fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
                 out[px] = u8::from(here[px]) * face;
             }
         }
-    });
-    state
+    })
 }
 
 /// For each of the eight face types, the array offsets of a face's facets, in Alg. 2's
@@ -928,8 +926,9 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
         let k = voxels.binary_search(&v).expect("the voxel of an edge that may pass");
         i64::from(opening[k]) - i64::from(distance.data[v])
     };
-    // Untouched pages of a zeroed vector cost nothing until written, and few are.
-    let mut keep = vec![false; x.cells.len()];
+    // Cleared in parallel: the allocator reuses freed memory, so a zeroed vector is cleared
+    // too, on one thread.
+    let mut keep = x.par_planes_new(false, |_, _| {});
     for (e, lifespan, bound) in may_pass {
         let dc = x.voxels_around(e).map(decenterness).max().unwrap_or(0);
         if lifespan > bound + dc {
