@@ -11,9 +11,7 @@
 
 use std::collections::VecDeque;
 
-use rayon::prelude::*;
-
-use crate::grid::Grid;
+use crate::grid::{par_planes_vec, Grid};
 
 /// The voxels containing a face along one axis of `n` voxels, from the face's doubled
 /// coordinate `c` on that axis: an odd coordinate 2a+1 lies in voxel a, an even one 2a in
@@ -82,19 +80,14 @@ impl Complex {
     /// the analysis' freed memory: 1.6 ms for the door's 15.6 M cells).
     pub fn par_planes_new<T: Copy + Send + Sync>(&self, fill: T, f: impl Fn(usize, &mut [T]) + Sync) -> Vec<T> {
         let sz = self.strides()[2];
-        let len = sz * (self.dims[2] + 2);
-        let mut out = Vec::with_capacity(len);
-        out.spare_capacity_mut()[..len].par_chunks_mut(sz).enumerate().for_each(|(pz, plane)| {
+        par_planes_vec(sz * (self.dims[2] + 2), sz, |pz, plane| {
             plane.fill(std::mem::MaybeUninit::new(fill));
             // SAFETY: every element of the plane was just written.
             let plane = unsafe { std::slice::from_raw_parts_mut(plane.as_mut_ptr().cast::<T>(), plane.len()) };
             if (1..=self.dims[2]).contains(&pz) {
                 f(pz - 1, plane);
             }
-        });
-        // SAFETY: the planes cover the first `len` elements, and each was written above.
-        unsafe { out.set_len(len) };
-        out
+        })
     }
 
     /// Strides of the padded array along x, y and z.

@@ -353,12 +353,17 @@ impl Padded {
 
     /// The voxels' values of a padded array, in the grid's order, plane by plane in parallel.
     pub(crate) fn unpad<T: Copy + Send + Sync>(&self, padded: &[T]) -> Vec<T> {
+        self.unpad_map(padded, |v| v)
+    }
+
+    /// [`Padded::unpad`] with each value passed through `f` on the way.
+    pub(crate) fn unpad_map<T: Copy + Sync, U: Send>(&self, padded: &[T], f: impl Fn(T) -> U + Sync) -> Vec<U> {
         let [nx, ny, nz] = self.dims;
         par_planes_vec(nx * ny * nz, nx * ny, |z, plane| {
             for (y, row) in plane.chunks_mut(nx).enumerate() {
                 let at = self.row_start(y, z);
                 row.iter_mut().zip(&padded[at..at + nx]).for_each(|(o, &v)| {
-                    o.write(v);
+                    o.write(f(v));
                 });
             }
         })
@@ -369,7 +374,11 @@ impl Padded {
 /// last may be shorter), in parallel. `fill` must write every value of its part. Written
 /// straight into the fresh vector: filling it first, or collecting parts and joining them,
 /// would be one more pass over memory, on one thread.
-fn par_planes_vec<U: Send>(len: usize, plane: usize, fill: impl Fn(usize, &mut [MaybeUninit<U>]) + Sync) -> Vec<U> {
+pub(crate) fn par_planes_vec<U: Send>(
+    len: usize,
+    plane: usize,
+    fill: impl Fn(usize, &mut [MaybeUninit<U>]) + Sync,
+) -> Vec<U> {
     use rayon::prelude::*;
     let mut out = Vec::with_capacity(len);
     if len > 0 {

@@ -44,9 +44,11 @@ impl NodeMapping {
         while !level.is_empty() {
             for &i in &level {
                 let i = i as usize;
+                // Read once: the stores below could be to it, as far as the compiler knows.
+                let node = label[i];
                 for j in axis_neighbours(i, strides) {
                     if label[j] == 0 {
-                        label[j] = label[i];
+                        label[j] = node;
                         next.push(j as u32);
                     }
                 }
@@ -54,8 +56,8 @@ impl NodeMapping {
             std::mem::swap(&mut level, &mut next);
             next.clear();
         }
-        label.iter_mut().filter(|l| **l == BLOCKED).for_each(|l| *l = 0);
-        let grid = Grid { spec, data: layout.unpad(&label) };
+        let data = layout.unpad_map(&label, |l| if l == BLOCKED { 0 } else { l });
+        let grid = Grid { spec, data };
         NodeMapping { grid }
     }
 
