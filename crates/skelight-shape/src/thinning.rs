@@ -31,13 +31,15 @@ pub const MAX_DATED_LAYERS: u32 = NEVER as u32 - 1;
 /// Death dates of every face under an unconstrained collapse (Def. 6.1), from which the
 /// birth dates follow (Def. 6.2, [`Dates::birth`]).
 ///
-/// Held as the collapse left its state bytes, where a removed face's byte holds its date
-/// (see `dead_state`), with the few dates too late for a byte beside them: an array of
-/// 16-bit dates would cost two more bytes per cell at the analysis' peak (classroom 430:
-/// 280 MB) and a pass over every cell to write it.
+/// Held in the collapse's own state bytes, where a removed face's byte holds its date (see
+/// `dead_state`), decoded in place to one date code a cell, with the few dates too late for
+/// a byte beside them: an array of 16-bit dates would cost two more bytes per cell at the
+/// analysis' peak (classroom 430: 280 MB).
 #[derive(Default)]
 pub struct Dates {
-    state: Vec<u8>,
+    /// Each cell's date code ([`byte_code`] of the collapse's final state byte), decoded
+    /// once here: W's scan reads every row of it up to five times.
+    codes: Vec<u8>,
     /// (face, date) for the faces removed in layer [`LATE`] or after, by face.
     late: Vec<(usize, Date)>,
     /// The latest death date (the number of layers), 0 if nothing was removed.
@@ -46,16 +48,17 @@ pub struct Dates {
 
 impl Dates {
     fn new(collapsed: Collapsed) -> Dates {
-        let Collapsed { layers, state, mut late } = collapsed;
+        let Collapsed { layers, state: mut codes, mut late } = collapsed;
+        codes.par_chunks_mut(1 << 16).for_each(|chunk| chunk.iter_mut().for_each(|s| *s = byte_code(*s)));
         late.par_sort_unstable();
-        Dates { state, late, last: layers as Date }
+        Dates { codes, late, last: layers as Date }
     }
 
     /// Def. 6.1: the layer in which face `i` is removed; [`NEVER`] for a face never removed
     /// or a cell outside the complex.
     #[inline]
     pub fn death(&self, i: usize) -> Date {
-        match byte_code(self.state[i]) {
+        match self.codes[i] {
             0 => NEVER,
             LATE => {
                 let k = self.late.binary_search_by_key(&i, |&(f, _)| f).expect("a face removed late is logged");
@@ -67,12 +70,12 @@ impl Dates {
 
     /// Every face's death date, by cell.
     pub fn deaths(&self) -> Vec<Date> {
-        (0..self.state.len()).into_par_iter().map(|i| self.death(i)).collect()
+        (0..self.codes.len()).into_par_iter().map(|i| self.death(i)).collect()
     }
 
     /// Clears in `cells` (the complex the dates were taken on) every face removed.
     pub fn keep_survivors(&self, cells: &mut [bool]) {
-        cells.par_iter_mut().zip(&self.state).for_each(|(c, &s)| *c &= s & ALIVE != 0);
+        cells.par_iter_mut().zip(&self.codes).for_each(|(c, &code)| *c &= code == 0);
     }
 
     /// Def. 6.2 for face `i` of `x`, the complex the dates were taken on: a face is born when
@@ -696,7 +699,7 @@ pub fn curvilinear_skeleton(
     }
     // The dates are spent: their state bytes, cleared, hold the piercing rounds' states.
     // Clearing pages already mapped costs the door ~1 ms; a fresh array's page faults, 3–7.
-    let mut scratch = dates.state;
+    let mut scratch = dates.codes;
     scratch.par_chunks_mut(1 << 16).for_each(|chunk| chunk.fill(0));
     pierce_and_thin(&mut skeleton, &keep, scratch);
     Ok(skeleton)
@@ -808,7 +811,7 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
         .map(|z| {
             let mut may_pass = Vec::new();
             let (mut may_pass_flags, mut column_max, mut edge_max) = (Vec::new(), Vec::new(), Vec::new());
-            let (mut codes, mut births): ([Vec<u8>; 5], Vec<u8>) = Default::default();
+            let mut births: Vec<u8> = Vec::new();
             for y in 0..ny {
                 if y & 1 == 1 && z & 1 == 1 {
                     continue; // squares and voxels only
@@ -867,15 +870,11 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 let first = (z + 1) * sz + (y + 1) * sy + first_x + 1;
                 let count = edge_max.len();
                 let [a, b] = coface_steps.map(|s| s as isize);
-                // The byte codes of the edges' row and of their cofaces' rows, and the
-                // latest of the cofaces' at every cell, in plain loops over bytes, which
-                // vectorise (reading every other byte does not).
-                for (codes, offset) in codes.iter_mut().zip([0, -a, a, -b, b]) {
-                    codes.clear();
-                    let cells = &dates.state[first.wrapping_add_signed(offset)..][..2 * count];
-                    codes.extend(cells.iter().map(|&s| byte_code(s)));
-                }
-                let [own, c0, c1, c2, c3] = &codes;
+                // The date codes of the edges' row and of their cofaces' rows, and the
+                // latest of the cofaces' at every cell, in a plain loop over bytes, which
+                // vectorises (reading every other byte does not).
+                let [own, c0, c1, c2, c3] =
+                    [0, -a, a, -b, b].map(|offset| &dates.codes[first.wrapping_add_signed(offset)..][..2 * count]);
                 births.clear();
                 births.extend(
                     c0.iter().zip(c1).zip(c2.iter().zip(c3)).map(|((&a, &b), (&c, &d))| a.max(b).max(c).max(d)),
@@ -1088,8 +1087,8 @@ mod tests {
                     let slabs = Slabs { parallel_from: 0, ..Slabs::with_count(&x, count) };
                     let collapsed = collapse_in_slabs(&x, initial_state(&x, keep), u32::MAX, true, Start::Scan, &slabs);
                     let layers = collapsed.layers;
-                    let d = Dates::new(collapsed);
-                    (layers, d.deaths(), d.state)
+                    let state = collapsed.state.clone();
+                    (layers, Dates::new(collapsed).deaths(), state)
                 };
                 let one = run(1);
                 assert!(one.0 > 3, "the object should take several layers");
