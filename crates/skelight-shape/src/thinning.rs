@@ -650,6 +650,14 @@ impl Neighbours {
         self.cofaces[(s >> TYPE_SHIFT) as usize].as_slice()
     }
 
+    /// The state byte of face `i`, alive, of type `ty` and kept or not, counting the
+    /// cofaces `alive` says are there.
+    #[inline]
+    fn state_of(&self, i: usize, ty: u8, kept: bool, alive: impl Fn(usize) -> bool) -> u8 {
+        let cofaces = self.cofaces(ty << TYPE_SHIFT).iter().filter(|&&o| alive(i.wrapping_add_signed(o)));
+        face_state(ty, cofaces.count() as u8, kept)
+    }
+
     /// The pair removed this layer with smaller face `g`, if any (see [`collapse_from`]):
     /// g is free (in the complex, not kept, one coface f left) and is f's first free facet.
     #[inline]
@@ -697,7 +705,7 @@ pub fn curvilinear_skeleton(
     if !replay::replay_constrained(&mut skeleton, &dates, &keep) {
         par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
     }
-    // The dates are spent: their state bytes, cleared, hold the piercing rounds' states.
+    // The dates are spent: their codes' bytes, cleared, hold the piercing rounds' states.
     // Clearing pages already mapped costs the door ~1 ms; a fresh array's page faults, 3–7.
     let mut scratch = dates.codes;
     scratch.par_chunks_mut(1 << 16).for_each(|chunk| chunk.fill(0));
@@ -759,8 +767,8 @@ pub fn thin_keeping(x: &mut Complex, keep: &[bool]) {
 /// state bytes.
 ///
 /// Few faces are left by then in a large array (door: 0.3 % of 15.6 M cells), so they are
-/// listed once with their types, and each round finds its squares in the list and writes the state bytes of
-/// the listed faces alone, clearing them after: on the door a round's dense state cost
+/// listed once with their types, and each round finds its squares in the list and writes
+/// the state bytes of the listed faces alone, clearing them after: on the door a round's dense state cost
 /// 10 ms and its square scan 5, against 1 ms for the collapse itself. (Cells off the list
 /// are outside the complex, state 0 as `initial_state` gives them, and a round's collapse
 /// writes only to faces of the complex.)
@@ -771,18 +779,16 @@ fn pierce_and_thin(x: &mut Complex, keep: &[bool], mut state: Vec<u8>) {
     let steps = Neighbours::new(x);
     loop {
         let squares: Vec<usize> = faces.iter().filter(|&&(_, ty)| ty.count_ones() == 2).map(|&(i, _)| i).collect();
+        // Every surface patch has a first square to pierce, so none is left exactly when no
+        // square is.
         if squares.is_empty() {
             break;
         }
         let pierced = pierce_squares(x, squares);
-        if pierced.is_empty() {
-            break;
-        }
         let around: Vec<usize> = pierced.iter().flat_map(|&sq| x.facets(sq).map(|t| t.0)).collect();
         faces.retain(|&(i, _)| x.cells[i]);
         for &(i, ty) in &faces {
-            let cofaces = steps.cofaces(ty << TYPE_SHIFT).iter().filter(|&&o| x.cells[i.wrapping_add_signed(o)]);
-            state[i] = face_state(ty, cofaces.count() as u8, keep[i]);
+            state[i] = steps.state_of(i, ty, keep[i], |c| x.cells[c]);
         }
         state = collapse_in_slabs(x, state, u32::MAX, false, Start::Candidates(around), &Slabs::new(x)).state;
         for &(i, _) in &faces {
@@ -854,8 +860,8 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 // Cells outside the complex have no death date, and a face dies no earlier
                 // than its cofaces, so an edge of finite death has its birth at the latest
                 // date among its four coface cells (0 if none has one): no complex flags are
-                // read, and the pass vectorises. Edges never removed have an
-                // infinite lifespan (see `curvilinear_skeleton`) and are left out.
+                // read, and the pass vectorises. Edges never removed have an infinite
+                // lifespan (see `curvilinear_skeleton`) and are left out.
                 //
                 // Lifespans of 0 are left out too, as the bound is never negative: DC ≥ 0,
                 // and birth ≥ D, as every voxel v around the edge dies at D₁(v)

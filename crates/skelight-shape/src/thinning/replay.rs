@@ -16,7 +16,7 @@
 //! kept as in [`collapse_from`](super::collapse_from), with coface counts updated when a
 //! coface outside the zone dies at its date.
 
-use super::{face_state, is_free, Dates, Neighbours, Pair, ALIVE, COUNT, NEVER, TYPE_SHIFT};
+use super::{is_free, Dates, Neighbours, Pair, ALIVE, COUNT, NEVER, TYPE_SHIFT};
 use crate::complex::Complex;
 use crate::grid::{BitSet, SparseBytes};
 
@@ -126,9 +126,7 @@ impl<'a> Replay<'a> {
     /// The state byte of face `i`, alive and of type `ty`, with its cofaces alive at the
     /// start of layer `t` (as [`Replay::alive_at`]).
     fn alive_state_at(&self, i: usize, ty: u8, t: u32) -> u8 {
-        let cofaces = self.steps.cofaces(ty << TYPE_SHIFT);
-        let alive = cofaces.iter().filter(|&&o| self.alive_at(i.wrapping_add_signed(o), t)).count();
-        face_state(ty, alive as u8, self.keep[i])
+        self.steps.state_of(i, ty, self.keep[i], |c| self.alive_at(c, t))
     }
 
     /// The state byte of face `i` at the start of layer `t` of the constrained run.
