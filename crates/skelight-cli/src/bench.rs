@@ -132,9 +132,9 @@ pub fn skeleton(scene: &skelight::scene::Scene, settings: &AnalysisSettings, run
         rayon::current_num_threads()
     );
     for (stage, secs) in &a.timings {
-        println!("  {stage:<40} {secs:8.3} s");
+        println!("  {stage:<40} {secs:9.4} s");
     }
-    println!("  {:<40} {total:8.3} s", "total");
+    println!("  {:<40} {total:9.4} s", "total");
     println!(
         "skeleton {} nodes → filtered {}; peak memory {}",
         a.skeleton.nodes.len(),

@@ -40,7 +40,10 @@ impl SkeletonGraph {
         // The empty voxel around each vertex farthest from the scene. `edt` may search (see
         // [`crate::distance::EuclideanRows::at`]): each voxel is asked once (door: 3.2 k for
         // 8 k vertex-voxel pairs), in parallel.
-        let vertices = par_flagged_positions(&x.cells, |i| x.dim(i) == 0);
+        // One scan for the vertices and edges: the edges are a few thousand, far cheaper to
+        // pick from the faces left than a second pass over the array (door: 0.7 ms).
+        let (vertices, edges): (Vec<usize>, Vec<usize>) =
+            par_flagged_positions(&x.cells, |i| x.dim(i) <= 1).into_iter().partition(|&i| x.dim(i) == 0);
         let mut voxels: Vec<usize> =
             vertices.iter().flat_map(|&i| x.voxels_around(i)).filter(|&v| empty.data[v]).collect();
         voxels.sort_unstable();
@@ -63,7 +66,7 @@ impl SkeletonGraph {
             graph.nodes.push(Node { position, voxel, radius: (d2 as f64).sqrt() * spec.voxel });
         }
         let node_of = |f: usize| node_at.binary_search_by_key(&f, |&(face, _)| face).ok().map(|k| node_at[k].1);
-        for e in par_flagged_positions(&x.cells, |i| x.dim(i) == 1) {
+        for e in edges {
             let ends: Vec<Option<u32>> = x.facets(e).map(|f| node_of(f.0)).collect();
             if let [Some(a), Some(b)] = ends[..] {
                 graph.edges.push([a, b]);
