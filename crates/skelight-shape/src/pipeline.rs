@@ -169,15 +169,16 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     lap("skeleton graph and filtering (Alg. 4)", &mut timings);
     // Independent and each sequential: one thread floods the node mapping while the other
     // labels the opening forest.
-    let ((mapping, enclosed), (labelling, portals)) = rayon::join(
-        || {
-            let mapping = NodeMapping::new(&filtered, &empty);
-            (mapping, enclosed_before.unwrap_or_else(|| enclosed_share(&empty, &reached_from_border(&empty))))
-        },
+    let (mapping, (labelling, portals, enclosed)) = rayon::join(
+        || NodeMapping::new(&filtered, &empty),
         || {
             let labelling = opening_forest_labelling(&open);
             let portals = portals(&labelling);
-            (labelling, portals)
+            (
+                labelling,
+                portals,
+                enclosed_before.unwrap_or_else(|| enclosed_share(&empty, &reached_from_border(&empty))),
+            )
         },
     );
     lap("node mapping (Alg. 5) beside opening labels and portals", &mut timings);
