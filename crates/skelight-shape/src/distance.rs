@@ -8,6 +8,7 @@ use std::sync::OnceLock;
 use rayon::prelude::*;
 
 use crate::grid::{Grid, GridSpec, Padded};
+use crate::simd::lower_to_next;
 
 const INF: u32 = u32::MAX / 4;
 
@@ -107,9 +108,7 @@ pub fn l1(set: &Grid<bool>, border_is_outside: bool) -> Grid<u32> {
                 let (a, b) = rows.split_at_mut(from);
                 (&*b[0], &mut *a[to])
             };
-            for (t, &f) in to.iter_mut().zip(from) {
-                *t = (*t).min(f + 1);
-            }
+            lower_to_next(to, from);
         };
         // The border lies before the first row and after the last.
         for end in [0, n - 1] {
@@ -190,10 +189,16 @@ fn chessboard_in_slabs(set: &Grid<bool>, border_is_outside: bool, slabs: usize) 
     Grid { spec: set.spec, data: layout.unpad(&d) }
 }
 
-/// One plane of a raster pass of [`chessboard`] (padded, rows `px` cells apart), given the
-/// plane before it in the pass's order; `before` is scratch of one row. Whether any value
-/// fell.
-fn chessboard_plane(
+crate::simd::avx2_dispatch! {
+    /// One plane of a raster pass of [`chessboard`] (padded, rows `px` cells apart), given
+    /// the plane before it in the pass's order; `before` is scratch of one row. Whether any
+    /// value fell.
+    fn chessboard_plane(cur: &mut [u32], back: &[u32], dims: [usize; 2], px: usize, forward: bool, before: &mut [u32]) -> bool
+        => chessboard_plane_kernel
+}
+
+#[inline(always)]
+fn chessboard_plane_kernel(
     cur: &mut [u32],
     back: &[u32],
     [nx, ny]: [usize; 2],

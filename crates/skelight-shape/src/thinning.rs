@@ -13,6 +13,7 @@ use crate::complex::{voxel_span, Complex};
 use crate::distance::l1;
 use crate::grid::{par_flagged_positions, BitSet, Grid};
 use crate::opening::l1_opening_at;
+use crate::simd::raise_to;
 use rayon::prelude::*;
 
 mod replay;
@@ -561,16 +562,23 @@ fn is_free(s: u8) -> bool {
 /// alternates, so which axis neighbours are cofaces is known without looking up the type:
 /// the count is a sum of masked neighbour flags, and a cell outside the complex is masked
 /// to 0 rather than skipped. With no branch the rows vectorise (door: 15.6 M cells, ~10 ms
-/// a call with a branch per cell; the constrained collapse and each piercing round call it too).
+/// a call with a branch per cell; the constrained collapse and each piercing round call it
+/// too). The masks are whole bytes (0 or 0xFF), and the x parity's masks and type bits come
+/// from arrays made once: computed from each cell's index, they took wide lanes narrowed
+/// to bytes, and multiplying by 0 or 1 took 16-bit lanes (door, one thread: 9 -> ? ms).
 fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
     let cells = &x.cells[..];
     let [_, sy, sz] = x.strides();
     let [nx, ny, _] = x.dims;
     let keep_none = vec![false; nx];
+    let mask = |even: bool| if even { 0xFF } else { 0 };
+    // By x: whether the x neighbours are cofaces, and the type's x bit in place.
+    let even_x: Vec<u8> = (0..nx).map(|px| mask(px & 1 == 0)).collect();
+    let type_x: Vec<u8> = (0..nx).map(|px| ((px & 1) as u8) << TYPE_SHIFT).collect();
     x.par_planes_new(0u8, |z, plane| {
         for y in 0..ny {
-            let (even_y, even_z) = (u8::from(y & 1 == 0), u8::from(z & 1 == 0));
-            let ty_yz = ((y & 1) << 1 | (z & 1) << 2) as u8;
+            let (even_y, even_z) = (mask(y & 1 == 0), mask(z & 1 == 0));
+            let alive_yz = ALIVE | (((y & 1) << 1 | (z & 1) << 2) as u8) << TYPE_SHIFT;
             let row = (y + 1) * sy + 1;
             let at = |offset: isize| -> &[bool] {
                 let start = ((z + 1) * sz + row).wrapping_add_signed(offset);
@@ -579,18 +587,80 @@ fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
             let (here, left, right) = (at(0), at(-1), at(1));
             let (below, above, back, front) =
                 (at(-(sy as isize)), at(sy as isize), at(-(sz as isize)), at(sz as isize));
-            let kept = keep.map_or(&keep_none[..], |k| &k[(z + 1) * sz + row..][..nx]);
             let out = &mut plane[row..row + nx];
-            for px in 0..nx {
-                let even_x = u8::from(px & 1 == 0);
-                let count = even_x * (u8::from(left[px]) + u8::from(right[px]))
-                    + even_y * (u8::from(below[px]) + u8::from(above[px]))
-                    + even_z * (u8::from(back[px]) + u8::from(front[px]));
-                let face = face_state(ty_yz | (px & 1) as u8, count, kept[px]);
-                out[px] = u8::from(here[px]) * face;
-            }
+            let kept = keep.map_or(&keep_none[..], |k| &k[(z + 1) * sz + row..][..nx]);
+            state_row(
+                out,
+                [here, left, right, below, above, back, front, kept],
+                [&even_x, &type_x],
+                [even_y, even_z, alive_yz],
+            );
         }
     })
+}
+
+crate::simd::avx2_dispatch! {
+    /// One row of [`initial_state`]: `cells` are the row's cells, its x, y and z neighbours
+    /// (lower first) and its kept flags, `by_x` the x parity's masks and type bits, and
+    /// `yz` the y and z parities' masks and the state's fixed bits.
+    fn state_row(out: &mut [u8], cells: [&[bool]; 8], by_x: [&[u8]; 2], yz: [u8; 3]) => state_row_kernel
+}
+
+#[inline(always)]
+fn state_row_kernel(
+    out: &mut [u8],
+    cells: [&[bool]; 8],
+    [even_x, type_x]: [&[u8]; 2],
+    [even_y, even_z, alive_yz]: [u8; 3],
+) {
+    let nx = out.len();
+    let [here, left, right, below, above, back, front, kept] = cells.map(|c| &c[..nx]);
+    let (even_x, type_x) = (&even_x[..nx], &type_x[..nx]);
+    for px in 0..nx {
+        let count = ((u8::from(left[px]) + u8::from(right[px])) & even_x[px])
+            + ((u8::from(below[px]) + u8::from(above[px])) & even_y)
+            + ((u8::from(back[px]) + u8::from(front[px])) & even_z);
+        let face = alive_yz | type_x[px] | (count + KEPT_BIAS * u8::from(kept[px]));
+        out[px] = face & 0u8.wrapping_sub(u8::from(here[px]));
+    }
+}
+
+crate::simd::avx2_dispatch! {
+    /// `out` ← the latest of the four rows' date codes at each cell ([`edge_constraint`]'s
+    /// lower bound on the births).
+    fn latest_of(out: &mut [u8], rows: [&[u8]; 4]) => latest_of_kernel
+}
+
+#[inline(always)]
+fn latest_of_kernel(out: &mut [u8], [c0, c1, c2, c3]: [&[u8]; 4]) {
+    let n = out.len();
+    let (c0, c1, c2, c3) = (&c0[..n], &c1[..n], &c2[..n], &c3[..n]);
+    for k in 0..n {
+        out[k] = c0[k].max(c1[k]).max(c2[k]).max(c3[k]);
+    }
+}
+
+crate::simd::avx2_dispatch! {
+    /// [`edge_constraint`]'s prefilter over one row of edges: `flags[k]` says whether the
+    /// edge at even cell 2k of `own` (death codes) may pass, from the latest coface codes
+    /// `births` and the largest distance `dmax[k]` around it; `last` stands for a date
+    /// too late for a code.
+    fn flag_may_pass(flags: &mut [u8], own: &[u8], births: &[u8], dmax: &[u32], last: u32) => flag_may_pass_kernel
+}
+
+#[inline(always)]
+fn flag_may_pass_kernel(flags: &mut [u8], own: &[u8], births: &[u8], dmax: &[u32], last: u32) {
+    // The edges are the even cells: each read with the cell after it as one 16-bit lane,
+    // masked to its low byte, which vectorises where picking every other byte does not.
+    fn edge_codes(codes: &[u8]) -> impl Iterator<Item = u32> + '_ {
+        codes.as_chunks::<2>().0.iter().map(|&pair| u32::from(u16::from_le_bytes(pair) & 0xFF))
+    }
+    // lifespan + D > birth is death + D > 2 birth, as death ≥ birth.
+    let codes = edge_codes(own).zip(edge_codes(births)).zip(dmax);
+    for (flag, ((death, birth), &dmax)) in flags.iter_mut().zip(codes) {
+        let death_or_last = if death == u32::from(LATE) { last } else { death };
+        *flag = u8::from(death != 0) & u8::from(death_or_last + dmax > 2 * birth);
+    }
 }
 
 /// For each of the eight face types, the array offsets of a face's facets, in Alg. 2's
@@ -842,9 +912,7 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 if constraint == EdgeConstraint::Thesis {
                     for vz in voxel_span(z, d) {
                         for vy in voxel_span(y, h) {
-                            for (m, &v) in column_max[1..=w].iter_mut().zip(distance.row(vy, vz)) {
-                                *m = (*m).max(v);
-                            }
+                            raise_to(&mut column_max[1..=w], distance.row(vy, vz));
                         }
                     }
                 }
@@ -882,9 +950,8 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 let [own, c0, c1, c2, c3] =
                     [0, -a, a, -b, b].map(|offset| &dates.codes[first.wrapping_add_signed(offset)..][..2 * count]);
                 births.clear();
-                births.extend(
-                    c0.iter().zip(c1).zip(c2.iter().zip(c3)).map(|((&a, &b), (&c, &d))| a.max(b).max(c).max(d)),
-                );
+                births.resize(2 * count, 0);
+                latest_of(&mut births, [c0, c1, c2, c3]);
                 let edge_lifespan = |death: Date, birth: Date, dmax: u32| {
                     let lifespan = death.wrapping_sub(birth);
                     let may_pass = death != NEVER && u32::from(lifespan) + dmax > u32::from(birth);
@@ -894,21 +961,10 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                         0
                     }
                 };
-                // The edges are the even cells: each read with the cell after it as one
-                // 16-bit lane, masked to its low byte, which vectorises where picking every
-                // other byte does not.
-                fn edge_codes(codes: &[u8]) -> impl Iterator<Item = u32> + '_ {
-                    codes.as_chunks::<2>().0.iter().map(|&pair| u32::from(u16::from_le_bytes(pair) & 0xFF))
-                }
-                // lifespan + D > birth is death + D > 2 birth, as death ≥ birth.
                 let last = u32::from(dates.last);
                 may_pass_flags.clear();
-                may_pass_flags.extend(edge_codes(own).zip(edge_codes(&births)).zip(&edge_max).map(
-                    |((death, birth), &dmax)| {
-                        let death_or_last = if death == u32::from(LATE) { last } else { death };
-                        u8::from(death != 0) & u8::from(death_or_last + dmax > 2 * birth)
-                    },
-                ));
+                may_pass_flags.resize(count, 0);
+                flag_may_pass(&mut may_pass_flags, own, &births, &edge_max, last);
                 for (k, _) in may_pass_flags.iter().enumerate().filter(|(_, &f)| f != 0) {
                     let e = first + 2 * k;
                     let birth = dates.birth(x, e);
