@@ -135,8 +135,9 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     if !empty.data.iter().any(|&e| e) {
         return Err(AnalysisError::NoEmptySpace);
     }
-    // Measured here only when the outside is to be cut away; otherwise beside the node
-    // mapping, off the path every other stage waits on (door: 1-2.6 ms).
+    // Measured here only when the outside is to be cut away; otherwise beside the maps,
+    // off the path every other stage waits on (door: 1.5-2.5 ms; beside the node mapping
+    // at the end, it made the longer of the last stage's two sides longer still).
     let enclosed_before = if settings.enclosed_only {
         let outside = reached_from_border(&empty);
         let enclosed = enclosed_share(&empty, &outside);
@@ -158,8 +159,16 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     // steps leave idle (door: 0.153-0.161 -> 0.147-0.154 s; peak memory 142 -> 163 MB, ajar
     // 364 727-756 -> 792-795 MB, classroom 430 unchanged). Within the maps, the Euclidean
     // one is wanted only at the skeleton's nodes, so only its pass along x is made here.
-    let ((edt, open), complex) = rayon::join(
-        || rayon::join(|| EuclideanRows::new(&empty, true), || opening(&chessboard(&empty, true))),
+    let (((edt, enclosed), open), complex) = rayon::join(
+        || {
+            rayon::join(
+                || {
+                    let enclosed = || enclosed_share(&empty, &reached_from_border(&empty));
+                    (EuclideanRows::new(&empty, true), enclosed_before.unwrap_or_else(enclosed))
+                },
+                || opening(&chessboard(&empty, true)),
+            )
+        },
         || curvilinear_skeleton(&empty, settings.constraint, &anchors),
     );
     let complex = complex?;
@@ -169,16 +178,12 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     lap("skeleton graph and filtering (Alg. 4)", &mut timings);
     // Independent and each sequential: one thread floods the node mapping while the other
     // labels the opening forest.
-    let (mapping, (labelling, portals, enclosed)) = rayon::join(
+    let (mapping, (labelling, portals)) = rayon::join(
         || NodeMapping::new(&filtered, &empty),
         || {
             let labelling = opening_forest_labelling(&open);
             let portals = portals(&labelling);
-            (
-                labelling,
-                portals,
-                enclosed_before.unwrap_or_else(|| enclosed_share(&empty, &reached_from_border(&empty))),
-            )
+            (labelling, portals)
         },
     );
     lap("node mapping (Alg. 5) beside opening labels and portals", &mut timings);
