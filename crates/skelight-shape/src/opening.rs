@@ -12,6 +12,7 @@ use crate::distance::par_lines;
 use rayon::prelude::*;
 
 use crate::grid::{axis_neighbours, Grid, GridSpec, Padded};
+use crate::simd::raise_to;
 
 /// The opening map and an opening forest.
 pub struct Opening {
@@ -296,12 +297,11 @@ fn ridges(l1: &Grid<u32>) -> Vec<([usize; 3], u32)> {
                 let (y, z) = (y as isize, z as isize);
                 around.fill(0);
                 for r in [l1.row_at(y - 1, z), l1.row_at(y + 1, z), l1.row_at(y, z - 1), l1.row_at(y, z + 1)] {
-                    let r = r.unwrap_or(&zeros);
-                    around.iter_mut().zip(r).for_each(|(m, &v)| *m = (*m).max(v));
+                    raise_to(&mut around, r.unwrap_or(&zeros));
                 }
                 // The x neighbours (none beyond the row's ends).
-                around[1..].iter_mut().zip(here).for_each(|(m, &v)| *m = (*m).max(v));
-                around[..w - 1].iter_mut().zip(&here[1..]).for_each(|(m, &v)| *m = (*m).max(v));
+                raise_to(&mut around[1..], here);
+                raise_to(&mut around[..w - 1], &here[1..]);
                 // Few voxels are ridges (door: 1 in 20): blocks without one are passed over
                 // by one vectorised test.
                 for (b, (here, around)) in here.chunks(16).zip(around.chunks(16)).enumerate() {
