@@ -506,8 +506,8 @@ fn first_closer_kernel(out: &mut [u32], rows: [&[u32]; 7]) {
     for k in 0..n {
         let dv = here[k];
         let mut first = 6;
-        for (facet, dw) in [a5[k], a4[k], a3[k], a2[k], a1[k], a0[k]].into_iter().enumerate() {
-            first = if dw < dv { 5 - facet as u32 } else { first };
+        for (facet, dw) in [a0[k], a1[k], a2[k], a3[k], a4[k], a5[k]].into_iter().enumerate().rev() {
+            first = if dw < dv { facet as u32 } else { first };
         }
         out[k] = first;
     }
@@ -595,13 +595,13 @@ fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
     let [nx, ny, _] = x.dims;
     let keep_none = vec![false; nx];
     let mask = |even: bool| if even { 0xFF } else { 0 };
-    // By x: whether the x neighbours are cofaces, and the type's x bit in place.
+    // By x: whether the x neighbours are cofaces, and the type's x bit.
     let even_x: Vec<u8> = (0..nx).map(|px| mask(px & 1 == 0)).collect();
-    let type_x: Vec<u8> = (0..nx).map(|px| ((px & 1) as u8) << TYPE_SHIFT).collect();
+    let type_x: Vec<u8> = (0..nx).map(|px| (px & 1) as u8).collect();
     x.par_planes_new(0u8, |z, plane| {
         for y in 0..ny {
             let (even_y, even_z) = (mask(y & 1 == 0), mask(z & 1 == 0));
-            let alive_yz = ALIVE | (((y & 1) << 1 | (z & 1) << 2) as u8) << TYPE_SHIFT;
+            let ty_yz = ((y & 1) << 1 | (z & 1) << 2) as u8;
             let row = (y + 1) * sy + 1;
             let at = |offset: isize| -> &[bool] {
                 let start = ((z + 1) * sz + row).wrapping_add_signed(offset);
@@ -616,7 +616,7 @@ fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
                 out,
                 [here, left, right, below, above, back, front, kept],
                 [&even_x, &type_x],
-                [even_y, even_z, alive_yz],
+                [even_y, even_z, ty_yz],
             );
         }
     })
@@ -625,7 +625,7 @@ fn initial_state(x: &Complex, keep: Option<&[bool]>) -> Vec<u8> {
 crate::simd::avx2_dispatch! {
     /// One row of [`initial_state`]: `cells` are the row's cells, its x, y and z neighbours
     /// (lower first) and its kept flags, `by_x` the x parity's masks and type bits, and
-    /// `yz` the y and z parities' masks and the state's fixed bits.
+    /// `yz` the y and z parities' masks and type bits.
     fn state_row(out: &mut [u8], cells: [&[bool]; 8], by_x: [&[u8]; 2], yz: [u8; 3]) => state_row_kernel
 }
 
@@ -634,7 +634,7 @@ fn state_row_kernel(
     out: &mut [u8],
     cells: [&[bool]; 8],
     [even_x, type_x]: [&[u8]; 2],
-    [even_y, even_z, alive_yz]: [u8; 3],
+    [even_y, even_z, ty_yz]: [u8; 3],
 ) {
     let nx = out.len();
     let [here, left, right, below, above, back, front, kept] = cells.map(|c| &c[..nx]);
@@ -643,8 +643,7 @@ fn state_row_kernel(
         let count = ((u8::from(left[px]) + u8::from(right[px])) & even_x[px])
             + ((u8::from(below[px]) + u8::from(above[px])) & even_y)
             + ((u8::from(back[px]) + u8::from(front[px])) & even_z);
-        let face = alive_yz | type_x[px] | (count + KEPT_BIAS * u8::from(kept[px]));
-        out[px] = face & 0u8.wrapping_sub(u8::from(here[px]));
+        out[px] = face_state(ty_yz | type_x[px], count, kept[px]) & 0u8.wrapping_sub(u8::from(here[px]));
     }
 }
 
@@ -972,7 +971,6 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                 // vectorises (reading every other byte does not).
                 let [own, c0, c1, c2, c3] =
                     [0, -a, a, -b, b].map(|offset| &dates.codes[first.wrapping_add_signed(offset)..][..2 * count]);
-                births.clear();
                 births.resize(2 * count, 0);
                 latest_of(&mut births, [c0, c1, c2, c3]);
                 let edge_lifespan = |death: Date, birth: Date, dmax: u32| {
@@ -985,7 +983,6 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
                     }
                 };
                 let last = u32::from(dates.last);
-                may_pass_flags.clear();
                 may_pass_flags.resize(count, 0);
                 flag_may_pass(&mut may_pass_flags, own, &births, &edge_max, last);
                 for (k, _) in may_pass_flags.iter().enumerate().filter(|(_, &f)| f != 0) {
