@@ -197,11 +197,17 @@ pub fn l1_opening_at(l1: &Grid<u32>, voxels: &[usize]) -> Vec<u32> {
     for b in 1..start.len() {
         start[b] += start[b - 1];
     }
-    let mut wanted = vec![([0usize; 3], 0usize); voxels.len()];
+    // Coordinates apart, one array per axis, so that a run of wanted voxels is tested as
+    // one vectorised loop ([`raise_covered`]); `place[j]` is where the j-th lies in `voxels`.
+    let mut coords = [vec![0i32; voxels.len()], vec![0i32; voxels.len()], vec![0i32; voxels.len()]];
+    let mut place = vec![0usize; voxels.len()];
     let mut fill = start.clone();
     for (k, &p) in positions.iter().enumerate() {
         let b = bucket_of(p);
-        wanted[fill[b]] = (p, k);
+        for a in 0..3 {
+            coords[a][fill[b]] = p[a] as i32;
+        }
+        place[fill[b]] = k;
         fill[b] += 1;
     }
     let held = BoxCounts::new(buckets_dims, |b| start[b + 1] - start[b]);
@@ -213,23 +219,46 @@ pub fn l1_opening_at(l1: &Grid<u32>, voxels: &[usize]) -> Vec<u32> {
         if !held.any(lo, hi) {
             return best;
         }
+        // Buckets follow one another along x, so each row of the box is one run.
         for bz in lo[2]..=hi[2] {
             for by in lo[1]..=hi[1] {
-                for bx in lo[0]..=hi[0] {
-                    let b = (bz * buckets_dims[1] + by) * buckets_dims[0] + bx;
-                    for &(p, k) in &wanted[start[b]..start[b + 1]] {
-                        let distance: usize = (0..3).map(|a| p[a].abs_diff(y[a])).sum();
-                        if distance < r as usize && best[k] < r {
-                            best[k] = r;
-                        }
-                    }
-                }
+                let row = (bz * buckets_dims[1] + by) * buckets_dims[0];
+                let run = start[row + lo[0]]..start[row + hi[0] + 1];
+                let [xs, ys, zs] = [0, 1, 2].map(|a| &coords[a][run.clone()]);
+                raise_covered(&mut best[run.clone()], [xs, ys, zs], y.map(|c| c as i32), r);
             }
         }
         best
     };
     let zero = || vec![0u32; voxels.len()];
-    ridges(l1).par_iter().fold(zero, raise).reduce(zero, |a, b| a.iter().zip(&b).map(|(&a, &b)| a.max(b)).collect())
+    let by_bucket = ridges(l1)
+        .par_iter()
+        .fold(zero, raise)
+        .reduce(zero, |a, b| a.iter().zip(&b).map(|(&a, &b)| a.max(b)).collect());
+    let mut opening = vec![0; voxels.len()];
+    for (j, &k) in place.iter().enumerate() {
+        opening[k] = by_bucket[j];
+    }
+    opening
+}
+
+crate::simd::avx2_dispatch! {
+    /// Raises `best` to `r` at the points (coordinates by axis) that lie in the L1 ball
+    /// {x : d₁(x, centre) < r}.
+    fn raise_covered(best: &mut [u32], coords: [&[i32]; 3], centre: [i32; 3], r: u32) => raise_covered_kernel
+}
+
+/// No branch, so the loop vectorises: a row of buckets holds tens of points, most of them
+/// outside the ball (door: 2.2 M tests; the pass over the ridges, one thread, 4.0 -> 2.0 ms
+/// against a test per point with its position and place side by side).
+#[inline(always)]
+fn raise_covered_kernel(best: &mut [u32], [xs, ys, zs]: [&[i32]; 3], [cx, cy, cz]: [i32; 3], r: u32) {
+    let n = best.len();
+    let (xs, ys, zs) = (&xs[..n], &ys[..n], &zs[..n]);
+    for j in 0..n {
+        let distance = ((xs[j] - cx).abs() + (ys[j] - cy).abs() + (zs[j] - cz).abs()) as u32;
+        best[j] = if distance < r { best[j].max(r) } else { best[j] };
+    }
 }
 
 /// Running counts over a small 3-D grid of cells (the buckets of [`l1_opening_at`]), to

@@ -793,16 +793,23 @@ pub fn curvilinear_skeleton(
     constraint: EdgeConstraint,
     anchors: &[usize],
 ) -> Result<Complex, TooManyLayers> {
-    let (mut skeleton, dates, keep) = constraint_set(set, constraint, anchors)?;
-    if !replay::replay_constrained(&mut skeleton, &dates, &keep) {
-        par_dir_collapse(&mut skeleton, Some(&keep), u32::MAX, None);
+    let (skeleton, dates, keep) = constraint_set(set, constraint, anchors)?;
+    Ok(thin_constrained(skeleton, dates, &keep))
+}
+
+/// Alg. 3 line 2 and §6.2.4 from [`constraint_set`]'s complex, dates and constraint set:
+/// the collapse keeping `keep` (replayed against the dated one where it can be), then the
+/// piercing rounds.
+pub fn thin_constrained(mut skeleton: Complex, dates: Dates, keep: &[bool]) -> Complex {
+    if !replay::replay_constrained(&mut skeleton, &dates, keep) {
+        par_dir_collapse(&mut skeleton, Some(keep), u32::MAX, None);
     }
     // The dates are spent: their codes' bytes, cleared, hold the piercing rounds' states.
     // Clearing pages already mapped costs the door ~1 ms; a fresh array's page faults, 3–7.
     let mut scratch = dates.codes;
     scratch.par_chunks_mut(1 << 16).for_each(|chunk| chunk.fill(0));
-    pierce_and_thin(&mut skeleton, &keep, scratch);
-    Ok(skeleton)
+    pierce_and_thin(&mut skeleton, keep, scratch);
+    skeleton
 }
 
 /// The dates of the unconstrained collapse of `x`, the complex of a voxel set with L1
