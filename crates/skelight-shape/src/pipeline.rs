@@ -12,7 +12,7 @@ use crate::mapping::NodeMapping;
 use crate::opening::opening;
 use crate::portals::{portals, Portal};
 use crate::skeleton::SkeletonGraph;
-use crate::thinning::{constraint_set, thin_constrained, EdgeConstraint, TooManyLayers};
+use crate::thinning::{thin_constrained, DatedThinning, EdgeConstraint, TooManyLayers};
 use crate::voxelize::{empty_space, voxelize};
 
 /// Bytes the analysis holds per voxel at its peak: the doubled grid of the complex (8 cells
@@ -156,27 +156,30 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     let anchors: Vec<usize> = anchor_voxels.iter().flatten().copied().collect();
     // Independent: the thinning needs only the empty space, and the maps need nothing from
     // it. Side by side, the maps' parallel passes fill the threads the thinning's serial
-    // steps leave idle (door: 0.153-0.161 -> 0.147-0.154 s; peak memory 142 -> 163 MB, ajar
-    // 364 727-756 -> 792-795 MB, classroom 430 unchanged). Within the maps, the Euclidean
+    // steps leave idle (door: 0.153-0.161 -> 0.147-0.154 s). Within the maps, the Euclidean
     // one is wanted only at the skeleton's nodes, so only its pass along x is made here.
-    // The opening, wanted only at the end, runs beside the thinning's last steps (the
-    // constrained collapse replayed against the dated one, and the piercing rounds), which
-    // are mostly serial, rather than beside its parallel first ones (door, best of 10 over
-    // eight alternating rounds: mean 0.1244 -> 0.1221 s; peak memory 200 -> 185 MB).
-    let (((edt, enclosed), chess), constrained) = rayon::join(
+    // The Euclidean rows go beside the dated collapse, and the chessboard map and the
+    // opening, wanted only at the end, beside Alg. 3's constraint set and the constrained
+    // thinning, whose replay and piercing rounds are mostly serial. Door, best of 10, means
+    // over eight alternating rounds: all maps beside the whole thinning 0.1244 s; the
+    // opening beside the constrained thinning 0.1221; with W too 0.1200; with the
+    // chessboard map too 0.1182-0.1193 (peak memory 200 -> 185 MB; ajar 364 0.67-0.68 ->
+    // 0.63-0.64 s; classroom 430 2.06-2.10 -> 2.09-2.16 s, 1.30 -> 1.35 GB).
+    let ((edt, enclosed), constrained) = rayon::join(
         || {
-            rayon::join(
-                || {
-                    let enclosed = || enclosed_share(&empty, &reached_from_border(&empty));
-                    (EuclideanRows::new(&empty, true), enclosed_before.unwrap_or_else(enclosed))
-                },
-                || chessboard(&empty, true),
-            )
+            let enclosed = || enclosed_share(&empty, &reached_from_border(&empty));
+            (EuclideanRows::new(&empty, true), enclosed_before.unwrap_or_else(enclosed))
         },
-        || constraint_set(&empty, settings.constraint, &anchors),
+        || DatedThinning::of(&empty),
     );
-    let (complex, dates, keep) = constrained?;
-    let (complex, open) = rayon::join(|| thin_constrained(complex, dates, &keep), || opening(&chess));
+    let dated = constrained?;
+    let (complex, open) = rayon::join(
+        || {
+            let keep = dated.constraint_set(&empty, settings.constraint, &anchors);
+            thin_constrained(dated.complex, dated.dates, &keep)
+        },
+        || opening(&chessboard(&empty, true)),
+    );
     lap("thinning (Alg. 2-3, piercing) beside distance and opening maps", &mut timings);
     let skeleton = SkeletonGraph::from_complex(&complex, &spec, &empty, |v| edt.at(v));
     let filtered = skeleton.filtered();

@@ -832,22 +832,45 @@ fn dated_collapse(x: &Complex, distance: &Grid<u32>, max_layers: u32) -> Result<
     Ok(dates)
 }
 
+/// The complex of a voxel set, the L1 distance map of the set, and the dates of the
+/// complex's unconstrained thinning: what Alg. 3's constraint set is chosen from.
+pub struct DatedThinning {
+    pub complex: Complex,
+    pub distance: Grid<u32>,
+    pub dates: Dates,
+}
+
+impl DatedThinning {
+    /// The unconstrained thinning of the complex of `set`, dated.
+    pub fn of(set: &Grid<bool>) -> Result<DatedThinning, TooManyLayers> {
+        let distance = l1(set, true);
+        let complex = Complex::from_voxels(set);
+        let dates = dated_collapse(&complex, &distance, MAX_DATED_LAYERS)?;
+        Ok(DatedThinning { complex, distance, dates })
+    }
+
+    /// Alg. 3's constraint set W (see [`edge_constraint`]) with a corner of each voxel of
+    /// `anchors` (voxels of `set`, the set the thinning was taken of) added: the skeleton
+    /// then reaches every anchor (seed 001 §3.2 puts the lights and the camera there).
+    pub fn constraint_set(&self, set: &Grid<bool>, constraint: EdgeConstraint, anchors: &[usize]) -> Vec<bool> {
+        let mut keep = edge_constraint(&self.complex, &self.dates, &self.distance, constraint);
+        for &v in anchors.iter().filter(|&&v| set.data[v]) {
+            keep[self.complex.index(set.spec.coords(v).map(|c| 2 * c))] = true;
+        }
+        keep
+    }
+}
+
 /// The complex of `set`, the dates of its unconstrained thinning, and Alg. 3's constraint
-/// set W (see [`edge_constraint`]) with a corner of each voxel of `anchors` added: the
-/// skeleton then reaches every anchor (seed 001 §3.2 puts the lights and the camera there).
+/// set W with the anchors' corners ([`DatedThinning::constraint_set`]).
 pub fn constraint_set(
     set: &Grid<bool>,
     constraint: EdgeConstraint,
     anchors: &[usize],
 ) -> Result<(Complex, Dates, Vec<bool>), TooManyLayers> {
-    let distance = l1(set, true);
-    let complex = Complex::from_voxels(set);
-    let dates = dated_collapse(&complex, &distance, MAX_DATED_LAYERS)?;
-    let mut keep = edge_constraint(&complex, &dates, &distance, constraint);
-    for &v in anchors.iter().filter(|&&v| set.data[v]) {
-        keep[complex.index(set.spec.coords(v).map(|c| 2 * c))] = true;
-    }
-    Ok((complex, dates, keep))
+    let dated = DatedThinning::of(set)?;
+    let keep = dated.constraint_set(set, constraint, anchors);
+    Ok((dated.complex, dated.dates, keep))
 }
 
 /// Alg. 3 line 2 and §6.2.4: collapses `x` keeping the faces of `keep`, then pierces the
