@@ -173,7 +173,7 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
         || DatedThinning::of(&empty),
     );
     let dated = constrained?;
-    let (complex, open) = rayon::join(
+    let ((complex, faces), open) = rayon::join(
         || {
             let keep = dated.constraint_set(&empty, settings.constraint, &anchors);
             thin_constrained(dated.complex, dated.dates, &keep)
@@ -181,7 +181,7 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
         || opening(&chessboard(&empty, true)),
     );
     lap("thinning (Alg. 2-3, piercing) beside distance and opening maps", &mut timings);
-    let skeleton = SkeletonGraph::from_complex(&complex, &spec, &empty, |v| edt.at(v));
+    let skeleton = SkeletonGraph::from_faces(&complex, &faces, &spec, &empty, |v| edt.at(v));
     let filtered = skeleton.filtered();
     lap("skeleton graph and filtering (Alg. 4)", &mut timings);
     // Independent and each sequential: one thread floods the node mapping while the other

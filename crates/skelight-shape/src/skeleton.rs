@@ -33,17 +33,28 @@ impl SkeletonGraph {
         empty: &Grid<bool>,
         edt: impl Fn(usize) -> u64 + Sync,
     ) -> SkeletonGraph {
-        // A skeleton keeps few faces of a large array: find them in parallel, then look nodes
-        // up by face in the sorted list instead of a node array as large as the complex.
+        // A skeleton keeps few faces of a large array: find them in parallel.
+        SkeletonGraph::from_faces(x, &par_flagged_positions(&x.cells, |_| true), spec, empty, edt)
+    }
+
+    /// [`SkeletonGraph::from_complex`] given the faces of `x` in increasing order, as the
+    /// thinning leaves them listed.
+    pub fn from_faces(
+        x: &Complex,
+        faces: &[usize],
+        spec: &GridSpec,
+        empty: &Grid<bool>,
+        edt: impl Fn(usize) -> u64 + Sync,
+    ) -> SkeletonGraph {
+        // Nodes are looked up by face in the sorted list instead of a node array as large as
+        // the complex.
         let mut graph = SkeletonGraph::default();
         let mut node_at: Vec<(usize, u32)> = Vec::new();
         // The empty voxel around each vertex farthest from the scene. `edt` may search (see
         // [`crate::distance::EuclideanRows::at`]): each voxel is asked once (door: 3.2 k for
         // 8 k vertex-voxel pairs), in parallel.
-        // One scan for the vertices and edges: the edges are a few thousand, far cheaper to
-        // pick from the faces left than a second pass over the array (door: 0.7 ms).
         let (vertices, edges): (Vec<usize>, Vec<usize>) =
-            par_flagged_positions(&x.cells, |i| x.dim(i) <= 1).into_iter().partition(|&i| x.dim(i) == 0);
+            faces.iter().filter(|&&i| x.dim(i) <= 1).partition(|&&i| x.dim(i) == 0);
         let mut voxels: Vec<usize> =
             vertices.iter().flat_map(|&i| x.voxels_around(i)).filter(|&v| empty.data[v]).collect();
         voxels.sort_unstable();

@@ -32,21 +32,26 @@ const MAX_ZONE_SHARE: usize = 16;
 
 /// Moves `x` (the complex `dates` were taken on) to the end of Alg. 2 keeping the faces of
 /// `keep` (a closed set), as [`collapse_from`](super::collapse_from) from `x` would.
-/// Returns false, leaving `x` as it was, if the two collapses differ too widely for the
-/// replay to be worth it.
-pub(super) fn replay_constrained(x: &mut Complex, dates: &Dates, keep: &[bool]) -> bool {
+/// Returns the faces left in increasing order, or `None`, leaving `x` as it was, if the two
+/// collapses differ too widely for the replay to be worth it.
+pub(super) fn replay_constrained(x: &mut Complex, dates: &Dates, keep: &[bool]) -> Option<Vec<usize>> {
     let most = x.cells.len() / MAX_ZONE_SHARE;
     replay_within(x, dates, keep, most)
 }
 
 /// [`replay_constrained`] giving up once the zone holds more than `most` faces.
-pub(super) fn replay_within(x: &mut Complex, dates: &Dates, keep: &[bool], most: usize) -> bool {
-    let Some(alive) = Replay::new(x, dates, keep).run(most) else { return false };
-    dates.keep_survivors(&mut x.cells);
-    for (i, alive) in alive {
+pub(super) fn replay_within(x: &mut Complex, dates: &Dates, keep: &[bool], most: usize) -> Option<Vec<usize>> {
+    let zone = Replay::new(x, dates, keep).run(most)?;
+    // The faces the dated run leaves, then the zone's as the constrained run leaves them.
+    let mut faces = dates.keep_survivors(&mut x.cells);
+    for &(i, alive) in &zone {
         x.cells[i] = alive;
     }
-    true
+    faces.extend(zone.iter().filter(|&&(_, alive)| alive).map(|&(i, _)| i));
+    faces.sort_unstable();
+    faces.dedup();
+    faces.retain(|&i| x.cells[i]);
+    Some(faces)
 }
 
 /// The constrained collapse inside the zone.
