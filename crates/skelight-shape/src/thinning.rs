@@ -813,16 +813,16 @@ pub fn curvilinear_skeleton(
 /// Alg. 3 line 2 and §6.2.4 from [`constraint_set`]'s complex, dates and constraint set:
 /// the collapse keeping `keep` (replayed against the dated one where it can be), then the
 /// piercing rounds. Returns the skeleton and its faces, in increasing order.
-pub fn thin_constrained(mut skeleton: Complex, dates: Dates, keep: &[bool]) -> (Complex, Vec<usize>) {
+pub fn thin_constrained(mut skeleton: Complex, dates: Dates, keep: &KeptFaces) -> (Complex, Vec<usize>) {
     let faces = replay::replay_constrained(&mut skeleton, &dates, keep).unwrap_or_else(|| {
-        par_dir_collapse(&mut skeleton, Some(keep), u32::MAX, None);
+        par_dir_collapse(&mut skeleton, Some(&keep.flags()), u32::MAX, None);
         par_flagged_positions(&skeleton.cells, |_| true)
     });
     // The dates are spent: their codes' bytes, cleared, hold the piercing rounds' states.
     // Clearing pages already mapped costs the door ~1 ms; a fresh array's page faults, 3–7.
     let mut scratch = dates.codes;
     scratch.par_chunks_mut(1 << 16).for_each(|chunk| chunk.fill(0));
-    let faces = pierce_and_thin(&mut skeleton, keep, scratch, faces);
+    let faces = pierce_and_thin(&mut skeleton, |i| keep.contains(i), scratch, faces);
     (skeleton, faces)
 }
 
@@ -866,12 +866,62 @@ impl DatedThinning {
     /// Alg. 3's constraint set W (see [`edge_constraint`]) with a corner of each voxel of
     /// `anchors` (voxels of `set`, the set the thinning was taken of) added: the skeleton
     /// then reaches every anchor (seed 001 §3.2 puts the lights and the camera there).
-    pub fn constraint_set(&self, set: &Grid<bool>, constraint: EdgeConstraint, anchors: &[usize]) -> Vec<bool> {
-        let mut keep = edge_constraint(&self.complex, &self.dates, &self.distance, constraint);
-        for &v in anchors.iter().filter(|&&v| set.data[v]) {
-            keep[self.complex.index(set.spec.coords(v).map(|c| 2 * c))] = true;
+    pub fn constraint_set(&self, set: &Grid<bool>, constraint: EdgeConstraint, anchors: &[usize]) -> KeptFaces {
+        let corners =
+            anchors.iter().filter(|&&v| set.data[v]).map(|&v| self.complex.index(set.spec.coords(v).map(|c| 2 * c)));
+        edge_constraint(&self.complex, &self.dates, &self.distance, constraint).with(corners)
+    }
+}
+
+/// A closed set of faces a collapse must keep: Alg. 3's W and the anchors' corners, a few
+/// thousand faces of millions (door: ~1 k of 15.6 M cells). Held as a bit set and a sorted
+/// list rather than a flag per cell: that array took 1.7 ms to clear on the door, and the
+/// replay a pass over it to list the faces.
+pub struct KeptFaces {
+    len: usize,
+    bits: BitSet,
+    list: Vec<usize>,
+}
+
+impl KeptFaces {
+    /// The faces `faces` (in any order, repeats allowed) of a complex of `len` cells.
+    pub fn new(len: usize, faces: Vec<usize>) -> KeptFaces {
+        KeptFaces { len, bits: BitSet::new(len), list: Vec::new() }.with(faces)
+    }
+
+    /// The faces flagged in `flags`, one flag per cell.
+    pub fn from_flags(flags: &[bool]) -> KeptFaces {
+        KeptFaces::new(flags.len(), par_flagged_positions(flags, |_| true))
+    }
+
+    /// These faces and `more`.
+    pub fn with(mut self, more: impl IntoIterator<Item = usize>) -> KeptFaces {
+        self.list.extend(more);
+        self.list.sort_unstable();
+        self.list.dedup();
+        for &i in &self.list {
+            self.bits.insert(i);
         }
-        keep
+        self
+    }
+
+    #[inline]
+    pub fn contains(&self, i: usize) -> bool {
+        self.bits.contains(i)
+    }
+
+    /// The faces, in increasing order.
+    pub fn faces(&self) -> &[usize] {
+        &self.list
+    }
+
+    /// One flag per cell, as [`par_dir_collapse`] takes them.
+    pub fn flags(&self) -> Vec<bool> {
+        let mut flags = vec![false; self.len];
+        for &i in &self.list {
+            flags[i] = true;
+        }
+        flags
     }
 }
 
@@ -881,7 +931,7 @@ pub fn constraint_set(
     set: &Grid<bool>,
     constraint: EdgeConstraint,
     anchors: &[usize],
-) -> Result<(Complex, Dates, Vec<bool>), TooManyLayers> {
+) -> Result<(Complex, Dates, KeptFaces), TooManyLayers> {
     let dated = DatedThinning::of(set)?;
     let keep = dated.constraint_set(set, constraint, anchors);
     Ok((dated.complex, dated.dates, keep))
@@ -896,7 +946,7 @@ pub fn thin_keeping(x: &mut Complex, keep: &[bool]) {
     let mut scratch = Vec::with_capacity(x.cells.len());
     scratch.par_extend(rayon::iter::repeat_n(0, x.cells.len()));
     let faces = par_flagged_positions(&x.cells, |_| true);
-    pierce_and_thin(x, keep, scratch, faces);
+    pierce_and_thin(x, |i| keep[i], scratch, faces);
 }
 
 /// §6.2.4 on `x`, collapsed keeping `keep`: pierces the surface parts left and collapses
@@ -910,7 +960,7 @@ pub fn thin_keeping(x: &mut Complex, keep: &[bool]) {
 /// 10 ms and its square scan 5, against 1 ms for the collapse itself. (Cells off the list
 /// are outside the complex, state 0 as `initial_state` gives them, and a round's collapse
 /// writes only to faces of the complex.)
-fn pierce_and_thin(x: &mut Complex, keep: &[bool], mut state: Vec<u8>, faces: Vec<usize>) -> Vec<usize> {
+fn pierce_and_thin(x: &mut Complex, kept: impl Fn(usize) -> bool, mut state: Vec<u8>, faces: Vec<usize>) -> Vec<usize> {
     // Each face with its type, found once: from the index it costs three divisions.
     let mut faces: Vec<(usize, u8)> = faces.into_par_iter().map(|i| (i, x.face_type(i))).collect();
     let steps = Neighbours::new(x);
@@ -925,7 +975,7 @@ fn pierce_and_thin(x: &mut Complex, keep: &[bool], mut state: Vec<u8>, faces: Ve
         let around: Vec<usize> = pierced.iter().flat_map(|&sq| x.facets(sq).map(|t| t.0)).collect();
         faces.retain(|&(i, _)| x.cells[i]);
         for &(i, ty) in &faces {
-            state[i] = steps.state_of(i, ty, keep[i], |c| x.cells[c]);
+            state[i] = steps.state_of(i, ty, kept(i), |c| x.cells[c]);
         }
         state = collapse_in_slabs(x, state, u32::MAX, false, Start::Candidates(around), &Slabs::new(x)).state;
         for &(i, _) in &faces {
@@ -945,7 +995,7 @@ fn pierce_and_thin(x: &mut Complex, keep: &[bool], mut state: Vec<u8>, faces: Ve
 /// own ball contains it, so π₁ ≥ D₁): only edges whose lifespan beats the part without DC
 /// can pass, a few hundred out of millions (door: 383 of 5.8 M edges). So the opening π₁ is found at
 /// their voxels only ([`l1_opening_at`]), not over the whole grid.
-pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constraint: EdgeConstraint) -> Vec<bool> {
+pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constraint: EdgeConstraint) -> KeptFaces {
     let [_, sy, sz] = x.strides();
     let [_, ny, nz] = x.dims;
     let [w, h, d] = distance.spec.dims;
@@ -1053,20 +1103,16 @@ pub fn edge_constraint(x: &Complex, dates: &Dates, distance: &Grid<u32>, constra
         let k = voxels.binary_search(&v).expect("the voxel of an edge that may pass");
         i64::from(opening[k]) - i64::from(distance.data[v])
     };
-    // Cleared in parallel: the allocator reuses freed memory, so a zeroed vector is cleared
-    // too, on one thread.
-    let mut keep = x.par_planes_new(false, |_, _| {});
+    let mut keep = Vec::new();
     for (e, lifespan, bound) in may_pass {
         let dc = x.voxels_around(e).map(decenterness).max().unwrap_or(0);
         if lifespan > bound + dc {
-            keep[e] = true;
             // W must be a complex: keep the kept edges' vertices too.
-            for (v, _, _) in x.facets(e) {
-                keep[v] = true;
-            }
+            keep.push(e);
+            keep.extend(x.facets(e).map(|(v, _, _)| v));
         }
     }
-    keep
+    KeptFaces::new(x.cells.len(), keep)
 }
 
 /// Removes one 2-face from every connected surface part of `x` (squares joined through
@@ -1482,7 +1528,10 @@ mod tests {
                     }
                 }
                 kept[constraint as usize] += expected.iter().filter(|&&w| w).count();
-                assert!(edge_constraint(&x, &dates, &distance, constraint) == expected, "set {k}, {constraint:?}");
+                assert!(
+                    edge_constraint(&x, &dates, &distance, constraint).flags() == expected,
+                    "set {k}, {constraint:?}"
+                );
             }
         }
         assert!(kept.iter().all(|&n| n > 0), "no face kept, nothing tested: {kept:?}");
@@ -1628,6 +1677,7 @@ mod tests {
         for (i, set) in shapes.iter().enumerate() {
             for constraint in [EdgeConstraint::Thesis, EdgeConstraint::ReleasedCode] {
                 let (mut x, _, keep) = constraint_set(set, constraint, &[]).unwrap();
+                let keep = keep.flags();
                 thin_keeping(&mut x, &keep);
                 assert!(x.is_curvilinear(), "shape {i}");
                 let once = x.clone();
@@ -1683,20 +1733,25 @@ mod tests {
             let anchors: Vec<usize> = (0..set.data.len()).filter(|&v| set.data[v] && v % 7 == 0).collect();
             let (x, dates, w) = constraint_set(set, EdgeConstraint::Thesis, &[]).unwrap();
             let (_, _, anchored) = constraint_set(set, EdgeConstraint::Thesis, &anchors).unwrap();
-            let keeps =
-                [w, anchored, random_closed_set(&x, k as u64, 0.002), random_closed_set(&x, k as u64 + 50, 0.01)];
+            let keeps = [
+                w.flags(),
+                anchored.flags(),
+                random_closed_set(&x, k as u64, 0.002),
+                random_closed_set(&x, k as u64 + 50, 0.01),
+            ];
             for (j, keep) in keeps.iter().enumerate() {
                 let mut dense = x.clone();
                 par_dir_collapse(&mut dense, Some(keep), u32::MAX, None);
                 let mut fast = x.clone();
-                let listed = replay::replay_within(&mut fast, &dates, keep, usize::MAX);
+                let listed = replay::replay_within(&mut fast, &dates, &KeptFaces::from_flags(keep), usize::MAX);
                 assert!(fast == dense, "shape {k}, kept set {j}: the replay ends elsewhere");
                 let left: Vec<usize> = (0..x.cells.len()).filter(|&i| dense.cells[i]).collect();
                 assert_eq!(listed, Some(left), "shape {k}, kept set {j}: the faces left, listed");
                 // Refused when the zone outgrows its bound, leaving the complex as it was.
                 let mut refused = x.clone();
                 let needed = keep.iter().zip(&dates.deaths()).any(|(&k, &d)| k && d != NEVER);
-                assert_eq!(replay::replay_within(&mut refused, &dates, keep, 10).is_some(), !needed);
+                let refusal = replay::replay_within(&mut refused, &dates, &KeptFaces::from_flags(keep), 10);
+                assert_eq!(refusal.is_some(), !needed);
                 if needed {
                     assert!(refused == x, "shape {k}, kept set {j}: a refused replay changed the complex");
                 }

@@ -16,7 +16,7 @@
 //! kept as in [`collapse_from`](super::collapse_from), with coface counts updated when a
 //! coface outside the zone dies at its date.
 
-use super::{is_free, Dates, Neighbours, Pair, ALIVE, COUNT, NEVER, TYPE_SHIFT};
+use super::{is_free, Dates, KeptFaces, Neighbours, Pair, ALIVE, COUNT, NEVER, TYPE_SHIFT};
 use crate::complex::Complex;
 use crate::grid::{BitSet, SparseBytes};
 
@@ -34,13 +34,13 @@ const MAX_ZONE_SHARE: usize = 16;
 /// `keep` (a closed set), as [`collapse_from`](super::collapse_from) from `x` would.
 /// Returns the faces left in increasing order, or `None`, leaving `x` as it was, if the two
 /// collapses differ too widely for the replay to be worth it.
-pub(super) fn replay_constrained(x: &mut Complex, dates: &Dates, keep: &[bool]) -> Option<Vec<usize>> {
+pub(super) fn replay_constrained(x: &mut Complex, dates: &Dates, keep: &KeptFaces) -> Option<Vec<usize>> {
     let most = x.cells.len() / MAX_ZONE_SHARE;
     replay_within(x, dates, keep, most)
 }
 
 /// [`replay_constrained`] giving up once the zone holds more than `most` faces.
-pub(super) fn replay_within(x: &mut Complex, dates: &Dates, keep: &[bool], most: usize) -> Option<Vec<usize>> {
+pub(super) fn replay_within(x: &mut Complex, dates: &Dates, keep: &KeptFaces, most: usize) -> Option<Vec<usize>> {
     let zone = Replay::new(x, dates, keep).run(most)?;
     // The faces the dated run leaves, then the zone's as the constrained run leaves them.
     let mut faces = dates.keep_survivors(&mut x.cells);
@@ -58,7 +58,7 @@ pub(super) fn replay_within(x: &mut Complex, dates: &Dates, keep: &[bool], most:
 struct Replay<'a> {
     x: &'a Complex,
     dates: &'a Dates,
-    keep: &'a [bool],
+    keep: &'a KeptFaces,
     steps: Neighbours,
     /// Cell offsets within [`REACH`], as coordinate steps.
     ball: Vec<[i64; 3]>,
@@ -79,11 +79,11 @@ struct Replay<'a> {
 }
 
 impl<'a> Replay<'a> {
-    fn new(x: &'a Complex, dates: &'a Dates, keep: &'a [bool]) -> Replay<'a> {
+    fn new(x: &'a Complex, dates: &'a Dates, keep: &'a KeptFaces) -> Replay<'a> {
         let n = x.cells.len();
         let last = usize::from(dates.last);
         let mut kept_dying = vec![Vec::new(); last + 2];
-        for i in crate::grid::par_flagged_positions(keep, |i| dates.death(i) != NEVER) {
+        for &i in keep.faces().iter().filter(|&&i| dates.death(i) != NEVER) {
             kept_dying[dates.death(i) as usize].push(i);
         }
         let r = REACH;
@@ -131,7 +131,7 @@ impl<'a> Replay<'a> {
     /// The state byte of face `i`, alive and of type `ty`, with its cofaces alive at the
     /// start of layer `t` (as [`Replay::alive_at`]).
     fn alive_state_at(&self, i: usize, ty: u8, t: u32) -> u8 {
-        self.steps.state_of(i, ty, self.keep[i], |c| self.alive_at(c, t))
+        self.steps.state_of(i, ty, self.keep.contains(i), |c| self.alive_at(c, t))
     }
 
     /// The state byte of face `i` at the start of layer `t` of the constrained run.
