@@ -132,9 +132,13 @@ pub fn skeleton(scene: &skelight::scene::Scene, settings: &AnalysisSettings, run
         rayon::current_num_threads()
     );
     for (stage, secs) in &a.timings {
-        println!("  {stage:<40} {secs:9.4} s");
+        println!("  {stage:<60} {secs:9.4} s");
     }
-    println!("  {:<40} {total:9.4} s", "total");
+    println!("  {:<60} {total:9.4} s", "total");
+    println!("steps, each on its thread (a phase's steps overlap):");
+    for (step, secs) in &a.steps {
+        println!("  {step:<60} {secs:9.4} s");
+    }
     println!(
         "skeleton {} nodes → filtered {}; peak memory {}",
         a.skeleton.nodes.len(),

@@ -51,9 +51,13 @@ pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) 
     }
     let total: f64 = a.timings.iter().map(|t| t.1).sum();
     for (stage, secs) in &a.timings {
-        let _ = writeln!(report, "{stage:<40} {secs:8.3} s");
+        let _ = writeln!(report, "{stage:<60} {secs:8.3} s");
     }
-    let _ = writeln!(report, "{:<40} {total:8.3} s", "total");
+    let _ = writeln!(report, "{:<60} {total:8.3} s", "total");
+    let _ = writeln!(report, "steps, each on its thread (a phase's steps overlap):");
+    for (step, secs) in &a.steps {
+        let _ = writeln!(report, "  {step:<58} {secs:8.3} s");
+    }
     let _ = writeln!(
         report,
         "skeleton: {} nodes, {} edges; filtered: {} nodes, {} edges; {} labels, {} portals",

@@ -53,8 +53,10 @@ pub struct Analysis {
     /// Fraction of the empty voxels that no 6-path joins to the grid's border: 0 for a scene
     /// that encloses no space (an open plane, a model seen from outside).
     pub enclosed: f64,
-    /// Seconds spent in each stage, in order.
+    /// Seconds each phase took, in order: together, the whole analysis.
     pub timings: Vec<(&'static str, f64)>,
+    /// Seconds each step took on its thread; the steps of a phase run side by side.
+    pub steps: Vec<(&'static str, f64)>,
 }
 
 /// A point the skeleton must reach (seed 001 §3.2: lights, the camera). `side` picks the
@@ -154,47 +156,62 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     lap("voxelise", &mut timings);
     let anchor_voxels: Vec<Option<usize>> = settings.anchors.iter().map(|a| nearest_empty_voxel(&empty, a)).collect();
     let anchors: Vec<usize> = anchor_voxels.iter().flatten().copied().collect();
-    // Independent: the thinning needs only the empty space, and the maps need nothing from
-    // it. Side by side, the maps' parallel passes fill the threads the thinning's serial
-    // steps leave idle (door: 0.153-0.161 -> 0.147-0.154 s). Within the maps, the Euclidean
-    // one is wanted only at the skeleton's nodes, so only its pass along x is made here.
-    // The Euclidean rows go beside the dated collapse, and the chessboard map and the
-    // opening, wanted only at the end, beside Alg. 3's constraint set and the constrained
-    // thinning, whose replay and piercing rounds are mostly serial. Door, best of 10, means
-    // over eight alternating rounds: all maps beside the whole thinning 0.1244 s; the
-    // opening beside the constrained thinning 0.1221; with W too 0.1200; with the
-    // chessboard map too 0.1182-0.1193 (peak memory 200 -> 185 MB; ajar 364 0.67-0.68 ->
-    // 0.63-0.64 s; classroom 430 2.06-2.10 -> 2.09-2.16 s, 1.30 -> 1.35 GB).
-    let ((edt, enclosed), constrained) = rayon::join(
+    // Two phases of two sides each. The maps need nothing from the thinning, and the
+    // thinning needs only the empty space: side by side, the maps' parallel passes fill
+    // the threads the thinning's serial steps leave idle. The Euclidean map is wanted only
+    // at the skeleton's nodes, so only its pass along x is made, beside the dated collapse.
+    // The chessboard map, the opening and its labels and portals, wanted only at the end,
+    // go beside W, the constrained thinning (its replay and piercing rounds mostly
+    // serial), the graph and the node mapping (a sequential flood, as the labelling is).
+    // Door, best of 10, means over eight alternating rounds: all maps beside the whole
+    // thinning, labels beside the mapping 0.1244 s; the opening beside the constrained
+    // thinning 0.1221; W too 0.1200; the chessboard map too 0.1182-0.1193; the graph and
+    // the mapping beside the labels 0.1182 -> 0.1168 (peak memory 200 -> 185 MB).
+    let (((edt, enclosed), rows_time), (dated, dated_time)) = rayon::join(
         || {
-            let enclosed = || enclosed_share(&empty, &reached_from_border(&empty));
-            (EuclideanRows::new(&empty, true), enclosed_before.unwrap_or_else(enclosed))
+            timed(|| {
+                let enclosed = || enclosed_share(&empty, &reached_from_border(&empty));
+                (EuclideanRows::new(&empty, true), enclosed_before.unwrap_or_else(enclosed))
+            })
         },
-        || DatedThinning::of(&empty),
+        || timed(|| DatedThinning::of(&empty)),
     );
-    let dated = constrained?;
-    let ((complex, faces), open) = rayon::join(
+    let dated = dated?;
+    lap("dated thinning (Alg. 2) beside the Euclidean rows", &mut timings);
+    let ((complex, skeleton, filtered, mapping, skeleton_steps), (labelling, portals, opening_steps)) = rayon::join(
         || {
-            let keep = dated.constraint_set(&empty, settings.constraint, &anchors);
-            thin_constrained(dated.complex, dated.dates, &keep)
+            let (keep, w_time) = timed(|| dated.constraint_set(&empty, settings.constraint, &anchors));
+            let ((complex, faces), thin_time) = timed(|| thin_constrained(dated.complex, dated.dates, &keep));
+            let ((skeleton, filtered), graph_time) = timed(|| {
+                let skeleton = SkeletonGraph::from_faces(&complex, &faces, &spec, &empty, |v| edt.at(v));
+                let filtered = skeleton.filtered();
+                (skeleton, filtered)
+            });
+            let (mapping, mapping_time) = timed(|| NodeMapping::new(&filtered, &empty));
+            let steps = [
+                ("constraint set W (Alg. 3)", w_time),
+                ("constrained thinning, piercing (Alg. 3)", thin_time),
+                ("skeleton graph and filtering (Alg. 4)", graph_time),
+                ("node mapping (Alg. 5)", mapping_time),
+            ];
+            (complex, skeleton, filtered, mapping, steps)
         },
-        || opening(&chessboard(&empty, true)),
-    );
-    lap("thinning (Alg. 2-3, piercing) beside distance and opening maps", &mut timings);
-    let skeleton = SkeletonGraph::from_faces(&complex, &faces, &spec, &empty, |v| edt.at(v));
-    let filtered = skeleton.filtered();
-    lap("skeleton graph and filtering (Alg. 4)", &mut timings);
-    // Independent and each sequential: one thread floods the node mapping while the other
-    // labels the opening forest.
-    let (mapping, (labelling, portals)) = rayon::join(
-        || NodeMapping::new(&filtered, &empty),
         || {
-            let labelling = opening_forest_labelling(&open);
-            let portals = portals(&labelling);
-            (labelling, portals)
+            let (open, opening_time) = timed(|| opening(&chessboard(&empty, true)));
+            let (labelling, labels_time) = timed(|| opening_forest_labelling(&open));
+            let (portals, portals_time) = timed(|| portals(&labelling));
+            let steps = [
+                ("chessboard and opening maps", opening_time),
+                ("opening labels", labels_time),
+                ("opening portals", portals_time),
+            ];
+            (labelling, portals, steps)
         },
     );
-    lap("node mapping (Alg. 5) beside opening labels and portals", &mut timings);
+    lap("skeleton, graph, mapping beside the opening, labels, portals", &mut timings);
+    let mut steps = vec![("dated thinning (Alg. 2)", dated_time), ("Euclidean rows, enclosed share", rows_time)];
+    steps.extend(skeleton_steps);
+    steps.extend(opening_steps);
     Ok(Analysis {
         spec,
         empty,
@@ -207,7 +224,15 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
         anchor_voxels,
         enclosed,
         timings,
+        steps,
     })
+}
+
+/// `f()`, and the seconds it took.
+fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let start = Instant::now();
+    let value = f();
+    (value, start.elapsed().as_secs_f64())
 }
 
 /// The empty voxel whose centre is nearest to the anchor, on its side, within
@@ -286,7 +311,8 @@ mod tests {
         let a = analyse(&closed_box(0.0, 1.0), &at(24)).unwrap();
         assert_eq!(a.skeleton.components(), a.filtered.components());
         assert!(!a.filtered.nodes.is_empty());
-        assert_eq!(a.timings.len(), 4);
+        assert_eq!(a.timings.len(), 3);
+        assert_eq!(a.steps.len(), 9);
         // Every empty voxel inside the walls maps to a node.
         let inside = (0..a.spec.len()).filter(|&i| a.empty.data[i]).all(|i| a.mapping.node_of_voxel(i).is_some());
         assert!(inside);
