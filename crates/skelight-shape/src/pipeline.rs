@@ -166,7 +166,7 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     // Door, best of 10, means over eight alternating rounds: all maps beside the whole
     // thinning, labels beside the mapping 0.1244 s; the opening beside the constrained
     // thinning 0.1221; W too 0.1200; the chessboard map too 0.1182-0.1193; the graph and
-    // the mapping beside the labels 0.1182 -> 0.1168 (peak memory 200 -> 185 MB).
+    // the mapping beside the labels 0.1182 -> 0.1168 (peak memory 199-218 MB throughout).
     let (((edt, enclosed), rows_time), (dated, dated_time)) = rayon::join(
         || {
             timed(|| {
