@@ -226,6 +226,29 @@ impl Slabs {
 /// A free pair (larger face, smaller face), as face indices.
 type Pair = (usize, usize);
 
+/// A free pair of the collapse's work lists, in one word: its larger face f and which of
+/// f's facets, in the sub-step order, is its smaller face. Half the bytes of a [`Pair`],
+/// and the removal passes over that facet, which goes with f, instead of counting down its
+/// cofaces (door: 5.3 M of 31 M coface counts spared).
+#[derive(Clone, Copy)]
+struct PackedPair(usize);
+
+impl PackedPair {
+    fn new(f: usize, facet: usize) -> PackedPair {
+        PackedPair(f << 3 | facet)
+    }
+
+    /// The larger face.
+    fn larger(self) -> usize {
+        self.0 >> 3
+    }
+
+    /// The smaller face's place among the larger one's facets.
+    fn facet(self) -> usize {
+        self.0 & 7
+    }
+}
+
 /// How many candidates ahead [`prefetch_around`] asks for the state bytes.
 const AHEAD: usize = 12;
 
@@ -257,8 +280,8 @@ fn prefetch_around(state: &[u8], [_, sy, sz]: [usize; 3], g: usize) {
 #[repr(align(128))]
 struct SlabLists {
     candidates: Vec<usize>,
-    pairs: Vec<Pair>,
-    border: Vec<Pair>,
+    pairs: Vec<PackedPair>,
+    border: Vec<PackedPair>,
     /// Indexed by layer − 1.
     scheduled: Vec<Vec<u32>>,
     border_alone: Vec<usize>,
@@ -291,24 +314,34 @@ impl Removal<'_> {
         }
     }
 
-    /// Removes the pair (f, g) chosen when layer `layer` started, and hands each facet
-    /// that became free to `queue`. (g, a facet of f, loses its coface first, but being
-    /// removed it is not free; g's facets are not f's, so the order changes nothing.)
+    /// Removes the pair chosen when layer `layer` started, and hands each facet that
+    /// became free to `queue`. (The smaller face g goes with the larger one, so its coface
+    /// count is left as it is; g's facets are not f's, so the order changes nothing.)
     #[inline]
-    fn remove(&mut self, steps: &Neighbours, (f, g): Pair, layer: Date, mut queue: impl FnMut(usize)) {
-        self.remove_face(steps, f, layer, &mut queue);
+    fn remove(&mut self, steps: &Neighbours, pair: PackedPair, layer: Date, mut queue: impl FnMut(usize)) {
+        let f = pair.larger();
+        let s = self.state[f - self.offset];
+        let g = f.wrapping_add_signed(steps.facets(s)[pair.facet()]);
+        self.remove_with_facets(steps.other_facets(s, pair.facet()), f, layer, &mut queue);
         self.remove_face(steps, g, layer, &mut queue);
     }
 
     /// Removes face `i` in layer `layer` and hands each facet that became free to `queue`.
     #[inline(always)]
     fn remove_face(&mut self, steps: &Neighbours, i: usize, layer: Date, queue: &mut impl FnMut(usize)) {
+        let facets = steps.facets(self.state[i - self.offset]);
+        self.remove_with_facets(facets, i, layer, queue);
+    }
+
+    /// Removes face `i` in layer `layer`, counting down the cofaces of its facets at
+    /// `facets` (offsets), and hands each facet that became free to `queue`.
+    #[inline(always)]
+    fn remove_with_facets(&mut self, facets: &[isize], i: usize, layer: Date, queue: &mut impl FnMut(usize)) {
         let i = i - self.offset;
-        let s = self.state[i];
-        debug_assert!(s & ALIVE != 0, "a face was removed twice");
+        debug_assert!(self.state[i] & ALIVE != 0, "a face was removed twice");
         self.mark_dead(i, layer);
         let state = &mut *self.state;
-        for &offset in steps.facets(s) {
+        for &offset in facets {
             // t lost a coface: it may be free now.
             let t = i.wrapping_add_signed(offset);
             debug_assert!(t < state.len());
@@ -363,7 +396,7 @@ fn collapse_in_slabs(
             }
         }),
     };
-    let (mut border, mut border_alone): (Vec<Pair>, Vec<usize>) = Default::default();
+    let (mut border, mut border_alone): (Vec<PackedPair>, Vec<usize>) = Default::default();
     let mut late_border = Vec::new();
     let mut layer = 0;
     while layer < layers {
@@ -375,7 +408,8 @@ fn collapse_in_slabs(
                 }
                 // SAFETY: `layer_pair` reads g, a face of the array, and then only axis
                 // neighbours of faces of the complex.
-                l.pairs.extend(steps.layer_pair(|i| unsafe { unchecked(&state, i) }, g));
+                let pair = steps.layer_pair(|i| unsafe { unchecked(&state, i) }, g);
+                l.pairs.extend(pair.map(|(f, facet)| PackedPair::new(f, facet)));
             }
             l.candidates.clear();
             l.pairs.len()
@@ -399,11 +433,12 @@ fn collapse_in_slabs(
             states.into_par_iter().zip(lists.par_iter_mut()).enumerate().for_each(|(s, (state, l))| {
                 let SlabLists { candidates, pairs, border, scheduled, border_alone, late } = l;
                 let mut view = Removal { offset: slabs.bounds[s], state, late: dated.then_some(late) };
-                for (f, g) in pairs.drain(..) {
-                    if slabs.inside(s, g) {
-                        view.remove(&steps, (f, g), date, |t| candidates.push(t));
+                for pair in pairs.drain(..) {
+                    // Every face a pair touches lies within two steps of its larger face.
+                    if slabs.inside(s, pair.larger()) {
+                        view.remove(&steps, pair, date, |t| candidates.push(t));
                     } else {
-                        border.push((f, g));
+                        border.push(pair);
                     }
                 }
                 for i in scheduled.get_mut(at).into_iter().flat_map(|a| a.drain(..)) {
@@ -705,6 +740,8 @@ fn flag_may_pass_kernel(flags: &mut [u8], own: &[u8], births: &[u8], dmax: &[u32
 struct Neighbours {
     facets: [Offsets; 8],
     cofaces: [Offsets; 8],
+    /// By type and facet k: the facets but the k-th.
+    others: [[Offsets; 6]; 8],
 }
 
 /// Up to six array offsets.
@@ -740,13 +777,29 @@ impl Neighbours {
                 }
             }
         }
-        Neighbours { facets, cofaces }
+        let others = std::array::from_fn(|ty| {
+            std::array::from_fn(|k| {
+                let mut rest = Offsets::default();
+                for (j, &o) in facets[ty].as_slice().iter().enumerate().filter(|&(j, _)| j != k) {
+                    rest.steps[j - usize::from(j > k)] = o;
+                    rest.len += 1;
+                }
+                rest
+            })
+        });
+        Neighbours { facets, cofaces, others }
     }
 
     /// Facet offsets of a face with state byte `s`.
     #[inline]
     fn facets(&self, s: u8) -> &[isize] {
         self.facets[(s >> TYPE_SHIFT) as usize].as_slice()
+    }
+
+    /// Facet offsets of a face with state byte `s` but its `k`-th facet's.
+    #[inline]
+    fn other_facets(&self, s: u8, k: usize) -> &[isize] {
+        self.others[(s >> TYPE_SHIFT) as usize][k].as_slice()
     }
 
     /// Coface offsets of a face with state byte `s`.
@@ -765,19 +818,22 @@ impl Neighbours {
 
     /// The pair removed this layer with smaller face `g`, if any (see [`collapse_from`]):
     /// g is free (in the complex, not kept, one coface f left) and is f's first free facet.
+    /// Returns f and g's place among f's facets.
     #[inline]
-    fn layer_pair(&self, state: impl Fn(usize) -> u8, g: usize) -> Option<Pair> {
+    fn layer_pair(&self, state: impl Fn(usize) -> u8, g: usize) -> Option<(usize, usize)> {
         if !is_free(state(g)) {
             return None;
         }
         let f = self.cofaces(state(g)).iter().map(|&o| g.wrapping_add_signed(o)).find(|&f| state(f) & ALIVE != 0)?;
-        (self.first_free_facet(&state, f) == Some(g)).then_some((f, g))
+        let (k, first) = self.first_free_facet(&state, f)?;
+        (first == g).then_some((f, k))
     }
 
-    /// The facet face `f` goes with if it has a free one: its first in the sub-step order.
+    /// The facet face `f` goes with if it has a free one: its first in the sub-step order,
+    /// with its place among f's facets.
     #[inline]
-    fn first_free_facet(&self, state: &impl Fn(usize) -> u8, f: usize) -> Option<usize> {
-        self.facets(state(f)).iter().map(|&o| f.wrapping_add_signed(o)).find(|&t| is_free(state(t)))
+    fn first_free_facet(&self, state: &impl Fn(usize) -> u8, f: usize) -> Option<(usize, usize)> {
+        self.facets(state(f)).iter().map(|&o| f.wrapping_add_signed(o)).enumerate().find(|&(_, t)| is_free(state(t)))
     }
 }
 

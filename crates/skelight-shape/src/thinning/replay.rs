@@ -235,7 +235,7 @@ impl<'a> Replay<'a> {
             // The layer's pairs in the zone, from the states at its start.
             pairs.clear();
             for &g in &free {
-                pairs.extend(self.steps.layer_pair(|i| self.state_at(i, t), g));
+                pairs.extend(self.steps.layer_pair(|i| self.state_at(i, t), g).map(|(f, _)| (f, g)));
             }
             // A face the dated run removes now may lose its free facet outside the zone,
             // where no coface count is followed: the only such facets are of faces the
@@ -246,7 +246,7 @@ impl<'a> Replay<'a> {
                 if s & (ALIVE | COUNT) != ALIVE {
                     continue; // gone already, kept, or not maximal
                 }
-                let first_free = self.steps.first_free_facet(&|i| self.state_at(i, t), f);
+                let first_free = self.steps.first_free_facet(&|i| self.state_at(i, t), f).map(|(_, h)| h);
                 if let Some(h) = first_free.filter(|&h| !self.zone.contains(h)) {
                     pairs.push((f, h));
                 }
