@@ -321,9 +321,11 @@ impl Removal<'_> {
     fn remove(&mut self, steps: &Neighbours, pair: PackedPair, layer: Date, mut queue: impl FnMut(usize)) {
         let f = pair.larger();
         let s = self.state[f - self.offset];
-        let g = f.wrapping_add_signed(steps.facets(s)[pair.facet()]);
-        self.remove_with_facets(steps.other_facets(s, pair.facet()), f, layer, &mut queue);
-        self.remove_face(steps, g, layer, &mut queue);
+        let k = pair.facet();
+        let g = f.wrapping_add_signed(steps.facets(s)[k]);
+        self.remove_with_facets(steps.other_facets(s, k), f, layer, &mut queue);
+        // g's type follows from f's: its facets need no look at its state byte.
+        self.remove_with_facets(steps.facets_of_facet(s, k), g, layer, &mut queue);
     }
 
     /// Removes face `i` in layer `layer` and hands each facet that became free to `queue`.
@@ -742,6 +744,8 @@ struct Neighbours {
     cofaces: [Offsets; 8],
     /// By type and facet k: the facets but the k-th.
     others: [[Offsets; 6]; 8],
+    /// By type and facet k: the k-th facet's own facets, from it.
+    facets_of_facet: [[Offsets; 6]; 8],
 }
 
 /// Up to six array offsets.
@@ -787,7 +791,15 @@ impl Neighbours {
                 rest
             })
         });
-        Neighbours { facets, cofaces, others }
+        // A face's k-th facet lies along the k/2-th of its odd axes; it has the type with
+        // that axis even.
+        let facets_of_facet = std::array::from_fn(|ty: usize| {
+            std::array::from_fn(|k| {
+                let axis = (0..3).filter(|&a| ty >> a & 1 == 1).nth(k / 2);
+                axis.map_or_else(Offsets::default, |a| facets[ty & !(1 << a)])
+            })
+        });
+        Neighbours { facets, cofaces, others, facets_of_facet }
     }
 
     /// Facet offsets of a face with state byte `s`.
@@ -800,6 +812,12 @@ impl Neighbours {
     #[inline]
     fn other_facets(&self, s: u8, k: usize) -> &[isize] {
         self.others[(s >> TYPE_SHIFT) as usize][k].as_slice()
+    }
+
+    /// Facet offsets of the `k`-th facet of a face with state byte `s`, from that facet.
+    #[inline]
+    fn facets_of_facet(&self, s: u8, k: usize) -> &[isize] {
+        self.facets_of_facet[(s >> TYPE_SHIFT) as usize][k].as_slice()
     }
 
     /// Coface offsets of a face with state byte `s`.
