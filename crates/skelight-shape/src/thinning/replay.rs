@@ -235,7 +235,7 @@ impl<'a> Replay<'a> {
             // The layer's pairs in the zone, from the states at its start.
             pairs.clear();
             for &g in &free {
-                pairs.extend(self.steps.layer_pair(|i| self.state_at(i, t), g).map(|(f, _)| (f, g)));
+                pairs.extend(self.steps.layer_pair(|i| self.state_at(i, t), g).map(|(f, _, _)| (f, g)));
             }
             // A face the dated run removes now may lose its free facet outside the zone,
             // where no coface count is followed: the only such facets are of faces the
