@@ -231,10 +231,10 @@ pub fn l1_opening_at(l1: &Grid<u32>, voxels: &[usize]) -> Vec<u32> {
         best
     };
     let zero = || vec![0u32; voxels.len()];
-    let by_bucket = ridges(l1)
-        .par_iter()
-        .fold(zero, raise)
-        .reduce(zero, |a, b| a.iter().zip(&b).map(|(&a, &b)| a.max(b)).collect());
+    let by_bucket = ridges(l1).par_iter().fold(zero, raise).reduce(zero, |mut a, b| {
+        raise_to(&mut a, &b);
+        a
+    });
     let mut opening = vec![0; voxels.len()];
     for (j, &k) in place.iter().enumerate() {
         opening[k] = by_bucket[j];

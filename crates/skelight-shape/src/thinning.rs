@@ -237,6 +237,7 @@ struct PackedPair(usize);
 impl PackedPair {
     /// The pair of `f`, with state byte `s`, and its facet `facet`.
     fn new(f: usize, s: u8, facet: usize) -> PackedPair {
+        debug_assert!(f < usize::MAX >> 6 && facet < 6);
         PackedPair(f << 6 | usize::from(s >> TYPE_SHIFT) << 3 | facet)
     }
 
@@ -789,8 +790,8 @@ impl Neighbours {
         let others = std::array::from_fn(|ty| {
             std::array::from_fn(|k| {
                 let mut rest = Offsets::default();
-                for (j, &o) in facets[ty].as_slice().iter().enumerate().filter(|&(j, _)| j != k) {
-                    rest.steps[j - usize::from(j > k)] = o;
+                for (_, &o) in facets[ty].as_slice().iter().enumerate().filter(|&(j, _)| j != k) {
+                    rest.steps[rest.len] = o;
                     rest.len += 1;
                 }
                 rest
