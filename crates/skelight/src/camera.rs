@@ -56,6 +56,9 @@ pub struct CameraSample {
     pub lens_point: Vec3,
     pub wi: Vec3,
     pub dist: f32,
+    /// Where the connection crosses the near plane: the segment from there to the scene
+    /// point must be unoccluded (see [`Camera::near_point`]).
+    pub near_point: Vec3,
     /// Importance W_e along the connection.
     pub importance: f32,
     /// Solid-angle density at the scene point of having sampled this lens point.
@@ -63,6 +66,9 @@ pub struct CameraSample {
 }
 
 impl Camera {
+    /// Near-clip distance of scenes that give none: Mitsuba's default (scene units).
+    pub const DEFAULT_NEAR_CLIP: f32 = 0.01;
+
     pub fn new(
         to_world: Transform,
         width: usize,
@@ -152,8 +158,18 @@ impl Camera {
         vec3((1.0 - 2.0 * sx) * self.tan_half.x, (1.0 - 2.0 * sy) * self.tan_half.y, 1.0)
     }
 
-    /// Primary ray through film position `raster` (pixels), lens sample `u_lens`.
+    /// Primary ray through film position `raster` (pixels), lens sample `u_lens`, starting
+    /// on the near plane (see [`Camera::sample_ray`]).
     pub fn generate_ray(&self, raster: Vec2, u_lens: Vec2) -> Ray {
+        self.sample_ray(raster, u_lens).1
+    }
+
+    /// The lens point a primary ray through `raster` leaves from, and the ray itself, whose
+    /// origin is moved along it to the near plane (camera-space depth `near_clip`, as
+    /// Mitsuba's cameras clip): surfaces nearer than that plane are invisible. The lens
+    /// point is the camera vertex of the path; the near plane only hides part of its
+    /// first segment (see [`Camera::near_point`]).
+    pub fn sample_ray(&self, raster: Vec2, u_lens: Vec2) -> (Vec3, Ray) {
         let d = self.local_direction(raster);
         // Directions stay unnormalised until the last step: the near-clip offset does not
         // depend on their length, and one normalisation in world space is enough.
@@ -164,8 +180,26 @@ impl Camera {
         } else {
             (Vec3::ZERO, d)
         };
+        let lens = self.local_to_world.point(o);
         let o = o + d * (self.near_clip / d.z);
-        Ray::new(self.local_to_world.point(o), self.local_to_world.vector(d).normalize())
+        (lens, Ray::new(self.local_to_world.point(o), self.local_to_world.vector(d).normalize()))
+    }
+
+    /// Where the segment from lens point `lens_world` to scene point `p` crosses the near
+    /// plane: the part between it and `p` is what must be unoccluded for the camera to see
+    /// `p` (occluders nearer than the plane are clipped away). `None` if `p` itself lies
+    /// nearer than the plane (the camera cannot see it). With no near clip, the lens point.
+    pub fn near_point(&self, lens_world: Vec3, p: Vec3) -> Option<Vec3> {
+        if self.near_clip <= 0.0 {
+            return Some(lens_world);
+        }
+        let (l, q) = (self.world_to_local.point(lens_world), self.world_to_local.point(p));
+        if !(q.z >= self.near_clip) {
+            return None;
+        }
+        // The lens lies in the plane z = 0 of camera space.
+        let f = (self.near_clip - l.z) / (q.z - l.z);
+        Some(lens_world + (p - lens_world) * f)
     }
 
     /// Film position (pixels) that a world direction leaving lens point `lens_world` maps to
@@ -195,19 +229,25 @@ impl Camera {
         Some(vec2(sx * self.width as f32, sy * self.height as f32))
     }
 
-    /// Where a ray arriving from the scene crosses the thin-lens aperture, if it does:
-    /// (distance along the ray, lens point, film position). Pinholes have no area to hit.
+    /// Where a ray arriving from the scene crosses the thin-lens aperture, if it does and
+    /// the camera sees the ray's origin: (distance along the ray, lens point, film
+    /// position). `ray.tmax` is the distance to the first surface along the ray; a surface
+    /// nearer to the lens than the near plane does not block it (it is clipped away), one
+    /// beyond does. Pinholes have no area to hit.
     pub fn intersect_lens(&self, ray: &Ray) -> Option<(f32, Vec3, Vec2)> {
         if self.aperture_radius <= 0.0 {
             return None;
         }
         let (o, d) = (self.world_to_local.point(ray.o), self.world_to_local.vector(ray.d));
-        // Arriving from the front means travelling towards −z in camera space.
-        if d.z >= 0.0 {
+        // Arriving from the front means travelling towards −z in camera space, from a point
+        // the camera can see.
+        if d.z >= 0.0 || !(o.z >= self.near_clip) {
             return None;
         }
         let t = -o.z / d.z;
-        if !(t > 0.0 && t < ray.tmax) {
+        // The ray enters the clipped region at depth `near_clip`.
+        let t_near = (self.near_clip - o.z) / d.z;
+        if !(t > 0.0 && t_near <= ray.tmax) {
             return None;
         }
         let p = o + d * t;
@@ -251,6 +291,7 @@ impl Camera {
         // square root and division that normalise it, not after (and points off the film
         // are dropped before them).
         let raster = self.raster_of(lens_point, -d)?;
+        let near_point = self.near_point(lens_point, p)?;
         let dist2 = d.length_squared();
         if !(dist2 > 0.0) {
             return None;
@@ -262,7 +303,7 @@ impl Camera {
             return None;
         }
         let pdf = dist2 / (cos_lens * self.lens_area());
-        Some(CameraSample { raster, lens_point, wi, dist, importance: self.importance(-wi), pdf })
+        Some(CameraSample { raster, lens_point, near_point, wi, dist, importance: self.importance(-wi), pdf })
     }
 }
 

@@ -134,7 +134,9 @@ pub fn connect_to_camera(
         let jy = y.join(scene, &light[s - 2], &lens, TransportMode::Importance);
         (y.beta * jy.f, Some(jy))
     };
-    if throughput.is_black() || !visible(scene, y, &lens) {
+    // Occluders between the lens and the near plane are clipped away.
+    let near = Vertex::camera(cs.near_point, cam.forward, Rgb::WHITE, 0.0);
+    if throughput.is_black() || !visible(scene, y, &near) {
         return None;
     }
     let junction = match joined {

@@ -171,9 +171,12 @@ pub fn camera_subpath_start(scene: &Scene, raster: Vec2, rng: &mut Rng, max_dept
         return None;
     }
     let cam = &scene.camera;
-    let ray = cam.generate_ray(raster, rng.next_2d());
+    // The camera vertex is the lens point, not the ray's origin on the near plane: the
+    // densities of the next vertex are per unit area from the lens (as light-side
+    // connections see the camera), and the near plane only hides occluders.
+    let (lens, ray) = cam.sample_ray(raster, rng.next_2d());
     let (pdf_pos, pdf_dir) = cam.pdf_we(ray.d);
-    Some((Vertex::camera(ray.o, cam.forward, Rgb::WHITE, pdf_pos), ray, pdf_dir))
+    Some((Vertex::camera(lens, cam.forward, Rgb::WHITE, pdf_pos), ray, pdf_dir))
 }
 
 /// Samples a light sub-path: a light chosen by power, a point and direction on it, then

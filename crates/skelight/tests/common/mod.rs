@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use skelight::eval::{block_means, relative_block_t_statistic};
 use skelight::film::Film;
 use skelight::imageio::Image;
-use skelight::integrator::{render, Integrator, RenderOptions};
+use skelight::integrator::{by_name, render, Integrator, RenderOptions};
 use skelight::scene::Scene;
 
 /// The project's `../shared` folder (beside the repository), which CI provides.
@@ -127,3 +127,34 @@ pub fn reference_noise(scene: &Scene, spp: u32, ref_spp: u32) -> Image {
 pub const T_LIMIT: f64 = 3.0;
 /// z limit for 3 channels × ~20 scenes per estimator: a Gaussian exceeds 4.5 with p ≈ 7e-6.
 pub const Z_LIMIT: f64 = 4.5;
+
+/// Every estimator renders `scene` twice (independent seeds); all pairs must agree in the
+/// image mean (z-test) and block by block (8×8 block T between estimators ≈ 1).
+pub fn estimators_agree(scene: &Scene, runs: &[(&str, u32)]) {
+    let renders: Vec<(&str, Image, Image)> = runs
+        .iter()
+        .filter_map(|&(name, spp)| {
+            let i = by_name(name).unwrap();
+            if let Some(why) = i.limitation(scene) {
+                println!("{name} skipped: {why}");
+                return None;
+            }
+            let (a, b) =
+                (render_spp(scene, i.as_ref(), spp, 11).image(), render_spp(scene, i.as_ref(), spp, 12).image());
+            Some((name, a, b))
+        })
+        .collect();
+    let (first, a0, b0) = &renders[0];
+    let (m0, s0) = pair_mean_se(a0, b0);
+    for (name, a, b) in &renders[1..] {
+        let (m, se) = pair_mean_se(a, b);
+        let t = pair_block_t(a0, b0, a, b);
+        for c in 0..3 {
+            let z = (m0[c] - m[c]).abs() / (s0[c] * s0[c] + se[c] * se[c]).sqrt();
+            println!("channel {c}: {first} {:.4} ± {:.4}, {name} {:.4} ± {:.4}, z {z:.2}", m0[c], s0[c], m[c], se[c]);
+            assert!(z < Z_LIMIT, "channel {c}: {first} {} ± {} vs {name} {} ± {}", m0[c], s0[c], m[c], se[c]);
+        }
+        println!("{first} vs {name}: block T {t:.2}");
+        assert!(t < T_LIMIT, "{first} vs {name}: block T = {t:.2}");
+    }
+}

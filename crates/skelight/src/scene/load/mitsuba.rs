@@ -1009,7 +1009,7 @@ impl Loader {
         if aperture > 0.0 && !(focus > 0.0) {
             return Err(self.err(n, "thinlens needs a positive focus_distance"));
         }
-        let near = self.float(n, "near_clip", 0.0)?.max(0.0);
+        let near = self.float(n, "near_clip", Camera::DEFAULT_NEAR_CLIP)?.max(0.0);
         self.desc.camera = Some(Camera::new(
             to_world,
             settings.width,

@@ -70,6 +70,8 @@ struct CameraSection {
     fov_axis: Option<String>,
     aperture_radius: Option<f32>,
     focus_distance: Option<f32>,
+    /// Camera-space depth below which nothing is seen (default: Mitsuba's 0.01).
+    near_clip: Option<f32>,
 }
 
 #[derive(Deserialize, Default)]
@@ -236,7 +238,11 @@ pub fn load_native(path: &Path) -> Result<SceneDescription, LoadError> {
         }
         let lens =
             Lens { aperture_radius: c.aperture_radius.unwrap_or(0.0), focus_distance: c.focus_distance.unwrap_or(1.0) };
-        desc.camera = Some(Camera::new(t, settings.width, settings.height, fov, axis, lens, 0.0));
+        let near = c.near_clip.unwrap_or(Camera::DEFAULT_NEAR_CLIP);
+        if !(near >= 0.0 && near.is_finite()) {
+            return Err(ctx.err(format!("camera.near_clip {near} must be finite and at least 0")));
+        }
+        desc.camera = Some(Camera::new(t, settings.width, settings.height, fov, axis, lens, near));
     }
     desc.settings = settings;
     Ok(desc)
@@ -333,6 +339,18 @@ fn load_mesh(ctx: &mut Ctx, m: &MeshSection, desc: &mut SceneDescription) -> Res
         "ply" => (vec![(None, super::ply::load_ply(&file)?)], HashMap::new()),
         other => return Err(ctx.err(format!("mesh '{}': unsupported format '.{other}' (obj or ply)", m.file))),
     };
+    // An override whose name matches no `usemtl` is a typo: those faces would silently take
+    // the MTL's material or a grey default.
+    let names: Vec<String> = groups.iter().map(|(n, _)| n.clone().unwrap_or_default()).collect();
+    let mut unused: Vec<&String> = m.materials.keys().filter(|k| *k != "*" && !names.contains(k)).collect();
+    unused.sort();
+    for key in unused {
+        desc.warnings.push(format!(
+            "mesh '{}': material override '{key}' matches none of the file's materials ({})",
+            m.file,
+            names.join(", ")
+        ));
+    }
     for (name, data) in groups {
         let key = name.clone().unwrap_or_default();
         let (material, alpha, emission) = match m.materials.get(&key).or_else(|| m.materials.get("*")) {
