@@ -139,6 +139,7 @@ pub fn skeleton(scene: &skelight::scene::Scene, settings: &AnalysisSettings, run
     for (step, secs) in &a.steps {
         println!("  {step:<60} {secs:9.4} s");
     }
+    println!("{}", crate::skeleton::space_kept(&a));
     println!(
         "skeleton {} nodes → filtered {}; peak memory {}",
         a.skeleton.nodes.len(),

@@ -79,6 +79,12 @@ enum Command {
         /// (area lights' centroids on their emitting side, point and spot lights), camera.
         #[arg(long, value_enum, value_delimiter = ',')]
         anchors: Vec<skeleton::AnchorKind>,
+        /// Analyse every component of the empty space. By default only those holding the
+        /// camera or a light are (the space light can reach), so the insides of closed
+        /// solids — pillars, slabs, closed furniture — get no skeleton; a camera or light
+        /// with no empty voxel within 4 voxels keeps everything, with a warning.
+        #[arg(long)]
+        keep_all_space: bool,
         /// Longest side, in pixels, of the pictures (the scene's camera, same aspect).
         #[arg(long, default_value_t = 640)]
         picture_size: usize,
@@ -192,6 +198,10 @@ enum BenchKind {
         bounds: Option<[[f64; 3]; 2]>,
         #[arg(long)]
         enclosed_only: bool,
+        /// As `skelight skeleton --keep-all-space` (by default, as there, only the space
+        /// holding the camera or a light is analysed).
+        #[arg(long)]
+        keep_all_space: bool,
         #[arg(long, default_value_t = 3)]
         runs: usize,
     },
@@ -348,10 +358,16 @@ fn use_backend(scene: &mut Scene, name: &str) -> Result<()> {
 
 fn bench(what: BenchKind) -> Result<()> {
     match what {
-        BenchKind::Skeleton { scene, resolution, bounds, enclosed_only, runs } => {
+        BenchKind::Skeleton { scene, resolution, bounds, enclosed_only, keep_all_space, runs } => {
             let scene = load_scene(Some(&scene), &[])?;
-            let settings =
-                AnalysisSettings { resolution, region: bounds, enclosed_only, ..AnalysisSettings::default() };
+            let settings = AnalysisSettings {
+                resolution,
+                region: bounds,
+                enclosed_only,
+                sources: skeleton::sources(&scene),
+                keep_all_space,
+                ..AnalysisSettings::default()
+            };
             bench::skeleton(&scene, &settings, runs.max(1))
         }
         BenchKind::Rays { scenes, rays, threads, rounds } => {
@@ -756,6 +772,7 @@ fn main() {
             bounds,
             enclosed_only,
             anchors,
+            keep_all_space,
             output,
             define,
             picture_size,
@@ -764,7 +781,16 @@ fn main() {
         } => (|| {
             let mut scene = load_scene(scene.as_deref(), &define)?;
             let anchors = skeleton::anchors(&scene, &anchors);
-            let settings = AnalysisSettings { resolution, constraint, region: bounds, enclosed_only, anchors };
+            let sources = skeleton::sources(&scene);
+            let settings = AnalysisSettings {
+                resolution,
+                constraint,
+                region: bounds,
+                enclosed_only,
+                anchors,
+                sources,
+                keep_all_space,
+            };
             let analysis = skeleton::run(&scene, &settings, &output, quiet)?;
             if no_pictures {
                 return Ok(());

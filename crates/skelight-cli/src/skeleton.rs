@@ -9,7 +9,8 @@ use anyhow::{Context, Result};
 use skelight::light::Light;
 use skelight::math::Vec3;
 use skelight::scene::Scene;
-use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings, Anchor};
+use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings, Anchor, ANCHOR_REACH};
+use skelight_shape::reach::Kept;
 use skelight_shape::skeleton::SkeletonGraph;
 
 /// Runs the analysis of `scene` with `settings` and writes its outputs into `dir`, with
@@ -19,15 +20,24 @@ pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) 
     for (anchor, voxel) in settings.anchors.iter().zip(&a.anchor_voxels) {
         if voxel.is_none() {
             eprintln!(
-                "warning: no empty voxel within {} voxels of the anchor at {:?} on its side: the skeleton is not pulled there",
-                skelight_shape::pipeline::ANCHOR_REACH,
+                "warning: no empty voxel within {ANCHOR_REACH} voxels of the anchor at {:?} on its side: the skeleton is not pulled there",
                 anchor.position
             );
         }
     }
+    if a.reach.kept == Kept::AllSourceUnplaced {
+        for (source, voxel) in settings.sources.iter().zip(&a.source_voxels) {
+            if voxel.is_none() {
+                eprintln!(
+                    "warning: the camera or light at {:?} has no empty voxel within {ANCHOR_REACH} voxels on its side (inside a solid or outside the grid): every empty component is kept, as with --keep-all-space",
+                    source.position
+                );
+            }
+        }
+    }
     if a.enclosed == 0.0 {
         eprintln!(
-            "warning: the scene encloses no empty space at this resolution (every empty voxel reaches the grid's border): the skeleton describes the space around it"
+            "warning: the empty space analysed encloses nothing at this resolution (every voxel of it reaches the grid's border): the skeleton runs through the air around the scene too"
         );
     }
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -45,6 +55,7 @@ pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) 
     let [w, h, d] = a.spec.dims;
     let _ = writeln!(report, "grid {w}×{h}×{d}, voxel {:.4}, origin {:?}", a.spec.voxel, a.spec.origin);
     let _ = writeln!(report, "enclosed empty space: {:.1} % of the empty voxels", a.enclosed * 100.0);
+    let _ = writeln!(report, "{}", space_kept(&a));
     let found = a.anchor_voxels.iter().filter(|v| v.is_some()).count();
     if !a.anchor_voxels.is_empty() {
         let _ = writeln!(report, "anchors: {found} of {} placed in the empty space", a.anchor_voxels.len());
@@ -73,6 +84,26 @@ pub fn run(scene: &Scene, settings: &AnalysisSettings, dir: &Path, quiet: bool) 
         eprint!("{report}");
     }
     Ok(a)
+}
+
+/// What the analysis kept of the empty space, in words.
+pub fn space_kept(a: &Analysis) -> String {
+    let what = match a.reach.kept {
+        Kept::All => "every component (--keep-all-space)",
+        Kept::Reached => "the components holding the camera or a light",
+        Kept::LargestEnclosed => "no camera or light: the largest enclosed component",
+        Kept::AllNothingEnclosed => "no camera or light, nothing enclosed: every component",
+        Kept::AllSourceUnplaced => "every component: a camera or light has no empty voxel near it",
+    };
+    let dropped = a.reach.dropped;
+    let share = dropped as f64 / (dropped + a.empty.data.iter().filter(|&&e| e).count()) as f64;
+    format!("empty space kept: {what}; {dropped} empty voxels dropped ({:.1} %)", share * 100.0)
+}
+
+/// The camera and the lights, where light paths start and end: the analysis keeps the
+/// empty space that holds them.
+pub fn sources(scene: &Scene) -> Vec<Anchor> {
+    anchors(scene, &[AnchorKind::Lights, AnchorKind::Camera])
 }
 
 /// Which scene elements the skeleton must reach.

@@ -174,6 +174,12 @@ fn skeleton_writes_graphs_portals_a_report_and_pictures() {
     ]);
     let report = std::fs::read_to_string(a.join("report.txt")).unwrap();
     assert!(report.contains("anchors: 2 of 2 placed"), "{report}");
+    // By default only the space holding the camera or a light is analysed; on request, all.
+    assert!(report.contains("empty space kept: the components holding the camera or a light"), "{report}");
+    let all = d.join("all");
+    run_ok(&["skeleton", "--resolution", "48", "--keep-all-space", "--no-pictures", "-o", all.to_str().unwrap()]);
+    let report = std::fs::read_to_string(all.join("report.txt")).unwrap();
+    assert!(report.contains("every component (--keep-all-space); 0 empty voxels dropped"), "{report}");
     let out = bin().args(["skeleton", "--bounds", "1,0,0,0,1,1", "-o", d.to_str().unwrap()]).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("XMIN,YMIN"), "{err}");

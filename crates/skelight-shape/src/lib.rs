@@ -13,6 +13,7 @@ pub mod mapping;
 pub mod opening;
 pub mod pipeline;
 pub mod portals;
+pub mod reach;
 mod simd;
 pub mod skeleton;
 #[cfg(test)]

@@ -6,11 +6,12 @@ use std::time::Instant;
 
 use crate::complex::Complex;
 use crate::distance::{chessboard, EuclideanRows};
-use crate::grid::{scanline_fill, Grid, GridError, GridSpec};
+use crate::grid::{Grid, GridError, GridSpec};
 use crate::labeling::{opening_forest_labelling, Labelling};
 use crate::mapping::NodeMapping;
 use crate::opening::opening;
 use crate::portals::{portals, Portal};
+use crate::reach::{enclosed_share, keep_reachable, place, reached_from_border, Kept, Reach};
 use crate::skeleton::SkeletonGraph;
 use crate::thinning::{thin_constrained, DatedThinning, EdgeConstraint, TooManyLayers};
 use crate::voxelize::{empty_space, voxelize};
@@ -50,8 +51,14 @@ pub struct Analysis {
     /// The empty voxel standing for each anchor, `None` where none lies within
     /// [`ANCHOR_REACH`] voxels on its side.
     pub anchor_voxels: Vec<Option<usize>>,
-    /// Fraction of the empty voxels that no 6-path joins to the grid's border: 0 for a scene
-    /// that encloses no space (an open plane, a model seen from outside).
+    /// The empty voxel standing for each source, as for the anchors.
+    pub source_voxels: Vec<Option<usize>>,
+    /// What was kept of the empty space, and how much was dropped.
+    pub reach: Reach,
+    /// Fraction of the empty voxels analysed (those kept, see `reach`; with `enclosed_only`,
+    /// all of them before the outside is cut away) that no 6-path joins to the grid's
+    /// border: 0 for a scene that encloses no space (an open plane, a model seen from
+    /// outside) or whose camera sees out of its box.
     pub enclosed: f64,
     /// Seconds each phase took, in order: together, the whole analysis.
     pub timings: Vec<(&'static str, f64)>,
@@ -92,6 +99,13 @@ pub struct AnalysisSettings {
     pub enclosed_only: bool,
     /// Points the skeleton must reach.
     pub anchors: Vec<Anchor>,
+    /// Where light paths start and end: the camera and the lights. Only the empty-space
+    /// components holding them are analysed (see [`crate::reach`]): the insides of closed
+    /// solids, which no path enters, get no skeleton. With none, the largest enclosed
+    /// component is kept.
+    pub sources: Vec<Anchor>,
+    /// Analyse every empty component, the insides of closed solids too.
+    pub keep_all_space: bool,
 }
 
 impl Default for AnalysisSettings {
@@ -102,6 +116,8 @@ impl Default for AnalysisSettings {
             region: None,
             enclosed_only: false,
             anchors: Vec::new(),
+            sources: Vec::new(),
+            keep_all_space: false,
         }
     }
 }
@@ -154,7 +170,11 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
         None
     };
     lap("voxelise", &mut timings);
-    let anchor_voxels: Vec<Option<usize>> = settings.anchors.iter().map(|a| nearest_empty_voxel(&empty, a)).collect();
+    let source_voxels: Vec<Option<usize>> = settings.sources.iter().map(|a| place(&empty, a)).collect();
+    let (empty, reach) =
+        if settings.keep_all_space { (empty, Reach::all(Kept::All)) } else { keep_reachable(empty, &source_voxels) };
+    lap("the space light reaches (flood from camera and lights)", &mut timings);
+    let anchor_voxels: Vec<Option<usize>> = settings.anchors.iter().map(|a| place(&empty, a)).collect();
     let anchors: Vec<usize> = anchor_voxels.iter().flatten().copied().collect();
     // Two phases of two sides each. The maps need nothing from the thinning, and the
     // thinning needs only the empty space: side by side, the maps' parallel passes fill
@@ -222,6 +242,8 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
         labelling,
         portals,
         anchor_voxels,
+        source_voxels,
+        reach,
         enclosed,
         timings,
         steps,
@@ -235,83 +257,21 @@ fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
     (value, start.elapsed().as_secs_f64())
 }
 
-/// The empty voxel whose centre is nearest to the anchor, on its side, within
-/// [`ANCHOR_REACH`] voxels.
-fn nearest_empty_voxel(empty: &Grid<bool>, anchor: &Anchor) -> Option<usize> {
-    let spec = &empty.spec;
-    let p = anchor.position;
-    let centre = [0, 1, 2].map(|a| ((p[a] - spec.origin[a]) / spec.voxel - 0.5).round() as i64);
-    let mut best: Option<(f64, usize)> = None;
-    for dz in -ANCHOR_REACH..=ANCHOR_REACH {
-        for dy in -ANCHOR_REACH..=ANCHOR_REACH {
-            for dx in -ANCHOR_REACH..=ANCHOR_REACH {
-                let v = [centre[0] + dx, centre[1] + dy, centre[2] + dz];
-                // Offsetting voxel 0 is the bounds check for a position that may lie outside.
-                let Some([x, y, z]) = spec.offset([0; 3], v) else { continue };
-                let i = spec.index(x, y, z);
-                let c = spec.center(x, y, z);
-                let d = [c[0] - p[0], c[1] - p[1], c[2] - p[2]];
-                let on_side = d[0] * anchor.side[0] + d[1] * anchor.side[1] + d[2] * anchor.side[2] >= 0.0;
-                let dist = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                if empty.data[i] && on_side && best.is_none_or(|(b, _)| dist < b) {
-                    best = Some((dist, i));
-                }
-            }
-        }
-    }
-    best.map(|(_, i)| i)
-}
-
-/// The share of the empty voxels that `outside` (the empty voxels joined to the grid's
-/// border) leaves out.
-fn enclosed_share(empty: &Grid<bool>, outside: &[bool]) -> f64 {
-    let total = empty.data.iter().filter(|&&e| e).count();
-    (total - outside.iter().filter(|&&r| r).count()) as f64 / total as f64
-}
-
-/// The empty voxels joined to the grid's border by 6-paths of empty voxels.
-fn reached_from_border(empty: &Grid<bool>) -> Vec<bool> {
-    let [w, h, d] = empty.spec.dims;
-    let open = &empty.data[..];
-    let mut reached = vec![false; open.len()];
-    // Every voxel of a border row, and the two ends of every other row.
-    let mut seeds: Vec<usize> = Vec::new();
-    for z in 0..d {
-        for y in 0..h {
-            let row = (z * h + y) * w;
-            if y == 0 || z == 0 || y + 1 == h || z + 1 == d {
-                seeds.extend((row..row + w).filter(|&i| open[i]));
-            } else {
-                seeds.extend([row, row + w - 1].into_iter().filter(|&i| open[i]));
-            }
-        }
-    }
-    scanline_fill(empty.spec.dims, &mut reached, [false, true], |i| open[i], seeds);
-    reached
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::neighbours6;
+    use crate::testing::closed_box;
 
     fn at(resolution: usize) -> AnalysisSettings {
         AnalysisSettings { resolution: Resolution::Longest(resolution), ..Default::default() }
     }
 
-    /// A closed box of 12 triangles: one room, a connected skeleton inside it.
-    fn closed_box(lo: f64, hi: f64) -> Vec<[[f64; 3]; 3]> {
-        let c = |i: usize| [0, 1, 2].map(|a| if i >> a & 1 == 1 { hi } else { lo });
-        let quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
-        quads.iter().flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]]).collect()
-    }
-
     #[test]
     fn a_closed_room_gives_one_connected_skeleton() {
-        let a = analyse(&closed_box(0.0, 1.0), &at(24)).unwrap();
+        let a = analyse(&closed_box([0.0; 3], [1.0; 3]), &at(24)).unwrap();
         assert_eq!(a.skeleton.components(), a.filtered.components());
         assert!(!a.filtered.nodes.is_empty());
-        assert_eq!(a.timings.len(), 3);
+        assert_eq!(a.timings.len(), 4);
         assert_eq!(a.steps.len(), 9);
         // Every empty voxel inside the walls maps to a node.
         let inside = (0..a.spec.len()).filter(|&i| a.empty.data[i]).all(|i| a.mapping.node_of_voxel(i).is_some());
@@ -322,8 +282,8 @@ mod tests {
     /// and a scene that encloses nothing says so.
     #[test]
     fn a_region_clips_the_scene_and_open_scenes_enclose_nothing() {
-        let room = closed_box(0.0, 1.0);
-        let alone = analyse(&room, &at(24)).unwrap();
+        let room = closed_box([0.0; 3], [1.0; 3]);
+        let alone = analyse(&room, &AnalysisSettings { keep_all_space: true, ..at(24) }).unwrap();
         assert!(alone.enclosed > 0.3, "{}", alone.enclosed);
         let mut with_ground = room.clone();
         with_ground.push([[-100.0, -1.0, -100.0], [100.0, -1.0, -100.0], [0.0, -1.0, 100.0]]);
@@ -343,6 +303,11 @@ mod tests {
         assert!(inside.empty.data.iter().filter(|&&e| e).count() < alone.empty.data.iter().filter(|&&e| e).count());
         assert_eq!(inside.filtered.components(), 1);
         assert!(alone.filtered.components() >= 2, "room and shell");
+        // By default, with no camera or light, the largest enclosed component: the room.
+        let room_only = analyse(&room, &at(24)).unwrap();
+        assert_eq!(room_only.reach.kept, Kept::LargestEnclosed);
+        assert!(room_only.empty.data == inside.empty.data);
+        assert_eq!(room_only.filtered.components(), 1);
         let inverted = Some([[1.0; 3], [0.0; 3]]);
         assert!(analyse(&room, &AnalysisSettings { region: inverted, ..at(16) }).is_err());
     }
@@ -351,7 +316,7 @@ mod tests {
     /// next to it; an anchor far outside the grid resolves to nothing.
     #[test]
     fn anchors_pull_the_skeleton_to_lights() {
-        let room = closed_box(0.0, 1.0);
+        let room = closed_box([0.0; 3], [1.0; 3]);
         let light = Anchor { position: [0.5, 0.4, 0.999], side: [0.0, 0.0, -1.0] };
         let lost = Anchor { position: [50.0, 0.0, 0.0], side: [0.0; 3] };
         let settings = AnalysisSettings { anchors: vec![light, lost], ..at(24) };
@@ -373,33 +338,6 @@ mod tests {
         assert_eq!(a.skeleton.components(), plain.skeleton.components());
     }
 
-    /// The scanline fill reaches exactly the voxels a voxel-by-voxel search from the border
-    /// reaches, on random grids dense enough to hold enclosed pockets and long runs.
-    #[test]
-    fn scanline_fill_matches_a_voxel_search() {
-        let mut r = crate::testing::Lcg(5);
-        for (k, dims) in
-            [[7, 5, 4], [1, 6, 6], [12, 9, 8], [9, 1, 1], [16, 16, 3]].into_iter().cycle().take(40).enumerate()
-        {
-            let spec = GridSpec { origin: [0.0; 3], voxel: 1.0, dims };
-            let density = 0.45 + 0.4 * (k % 4) as f64 / 3.0;
-            let empty = Grid { spec, data: (0..spec.len()).map(|_| r.next() < density).collect() };
-            let mut oracle = vec![false; spec.len()];
-            let on_border = |i: usize| {
-                let v = spec.coords(i);
-                (0..3).any(|a| v[a] == 0 || v[a] + 1 == dims[a])
-            };
-            let mut stack: Vec<usize> = (0..spec.len()).filter(|&i| on_border(i) && empty.data[i]).collect();
-            while let Some(i) = stack.pop() {
-                if std::mem::replace(&mut oracle[i], true) {
-                    continue;
-                }
-                stack.extend(neighbours6(dims, i).filter(|&j| empty.data[j] && !oracle[j]));
-            }
-            assert_eq!(reached_from_border(&empty), oracle, "grid {k}, {dims:?}");
-        }
-    }
-
     #[test]
     fn bad_input_is_refused_with_a_reason() {
         assert!(matches!(analyse(&[], &at(32)), Err(AnalysisError::NoTriangles)));
@@ -408,8 +346,8 @@ mod tests {
         // Degenerate triangles (all on a point) have empty bounds.
         let point = [[[1.0; 3]; 3]];
         assert!(matches!(analyse(&point, &at(32)), Err(AnalysisError::Grid(GridError::EmptyBounds))));
-        let err = analyse(&closed_box(0.0, 1.0), &at(100_000)).err().unwrap();
+        let err = analyse(&closed_box([0.0; 3], [1.0; 3]), &at(100_000)).err().unwrap();
         assert!(matches!(err, AnalysisError::Grid(GridError::TooLarge(..))), "{err}");
-        assert!(analyse(&closed_box(0.0, 1.0), &at(0)).is_err());
+        assert!(analyse(&closed_box([0.0; 3], [1.0; 3]), &at(0)).is_err());
     }
 }

@@ -1,5 +1,5 @@
-//! Voxel sets the unit tests share: built from a predicate, random, and the two rooms
-//! joined by a door gap that several stages are checked on.
+//! Voxel sets and scenes the unit tests share: built from a predicate, random, the two rooms
+//! joined by a door gap that several stages are checked on, closed boxes.
 
 use crate::grid::{Grid, GridSpec};
 
@@ -40,4 +40,12 @@ pub fn two_rooms_and_a_gap(voxel: f64) -> Grid<bool> {
         let gap = (8..10).contains(&y) && (1..8).contains(&z);
         inside && (x != 12 || gap)
     })
+}
+
+/// The 12 triangles of the closed box `[lo, hi]` (corners on each axis): a room, or a solid
+/// whose inside surface voxelisation leaves empty.
+pub fn closed_box(lo: [f64; 3], hi: [f64; 3]) -> Vec<[[f64; 3]; 3]> {
+    let c = |i: usize| [0, 1, 2].map(|a| if i >> a & 1 == 1 { hi[a] } else { lo[a] });
+    let quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
+    quads.iter().flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]]).collect()
 }
