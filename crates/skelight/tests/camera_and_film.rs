@@ -6,32 +6,9 @@
 
 mod common;
 
-use std::path::PathBuf;
-
 use common::*;
 use skelight::integrator::by_name;
-use skelight::scene::load::load;
 use skelight::scene::Scene;
-
-/// A conformance scene with its XML text edited by `edit`, loaded from a scratch folder.
-fn edited_conformance_scene(name: &str, edit: impl Fn(String) -> String, w: usize, h: usize) -> Scene {
-    let scenes = shared_dir().join("conformance/scenes");
-    let text = std::fs::read_to_string(scenes.join(format!("{name}.xml"))).unwrap();
-    let edited = edit(text.clone());
-    assert_ne!(edited, text, "{name}: the edit changed nothing");
-    let dir: PathBuf = std::env::temp_dir().join(format!("skelight-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    // The meshes and textures scenes may refer to (inside their folder).
-    for f in ["sphere.obj", "checker.png", "leaf.png", "sky.exr"] {
-        std::fs::copy(scenes.join(f), dir.join(f)).unwrap();
-    }
-    let path = dir.join(format!("{name}.xml"));
-    std::fs::write(&path, edited).unwrap();
-    let mut scene = load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
-    std::fs::remove_dir_all(&dir).ok();
-    scene.set_resolution(w, h);
-    scene
-}
 
 /// The Cornell box seen through a near plane: at 2.5 (the camera is 3.9 from the box's
 /// centre) the plane lies in front of the box and clips nothing, but a camera vertex taken

@@ -52,23 +52,35 @@ fn every_real_scene_loads_and_renders() {
     }
 }
 
-/// veach-ajar against the Tungsten reference shipped with it. The scene description is a
-/// conversion, not Tungsten's own file: Mitsuba 3.9.1 on the same XML (320×180, 1024 spp)
-/// differs from Tungsten's image mean by (+0.0064, +0.0110, +0.0115) — Mitsuba (1.2170,
-/// 0.8515, 0.7417) vs Tungsten (1.2106, 0.8405, 0.7302). The tolerance is that measured
-/// offset plus five standard errors of our own estimate.
+/// veach-ajar against Mitsuba 3.9.1 on the same XML (320×180, 1024 spp: 1.2170, 0.8515,
+/// 0.7417). The Tungsten reference shipped with it (1.2106, 0.8405, 0.7302) is of Tungsten's
+/// own scene file, of which the XML is a conversion: the offset between the two renderers
+/// (+0.5 to +1.6 %) belongs to the conversion, not to either renderer, so the test holds us
+/// to Mitsuba's mean, within five standard errors of the difference (Mitsuba's estimated
+/// from ours, scaled by the two renders' sample counts), and prints Tungsten's for reference.
 #[test]
-fn veach_ajar_matches_the_tungsten_mean() {
-    const CONVERSION_OFFSET: [f64; 3] = [0.0064, 0.0110, 0.0115];
+fn veach_ajar_matches_mitsuba_on_the_same_scene_file() {
+    const MITSUBA: [f64; 3] = [1.2170, 0.8515, 0.7417];
+    const OURS_SPP: f64 = 384.0;
+    let (w, h) = (160usize, 90usize);
     let dir = shared_dir().join("scenes/veach-ajar");
-    let scene = load_small(&dir.join("scene.xml"), 160, 90);
-    let film = render_spp(&scene, by_name("pt").unwrap().as_ref(), 384, 17);
+    let scene = load_small(&dir.join("scene.xml"), w, h);
+    let film = render_spp(&scene, by_name("pt").unwrap().as_ref(), OURS_SPP as u32, 17);
     let (m, se) = film_mean_se(&film);
-    let reference = Image::load(&dir.join("TungstenRender.exr")).unwrap().mean();
-    for (c, r) in reference.to_array().iter().enumerate() {
-        let d = (m[c] - *r as f64).abs();
-        println!("channel {c}: ours {:.4} ± {:.4}, Tungsten {:.4}", m[c], se[c], r);
-        assert!(d < CONVERSION_OFFSET[c] + 5.0 * se[c], "channel {c}: {} vs Tungsten {r} (se {})", m[c], se[c]);
+    let tungsten = Image::load(&dir.join("TungstenRender.exr")).unwrap().mean();
+    // Mitsuba's image mean averages 1024 samples over 4× our pixels.
+    let mitsuba_se_scale = (OURS_SPP * (w * h) as f64 / (1024.0 * 320.0 * 180.0)).sqrt();
+    for c in 0..3 {
+        let se_diff = se[c] * (1.0 + mitsuba_se_scale * mitsuba_se_scale).sqrt();
+        let z = (m[c] - MITSUBA[c]) / se_diff;
+        println!(
+            "channel {c}: ours {:.4} ± {:.4}, Mitsuba {:.4} (z {z:.2}), Tungsten {:.4}",
+            m[c],
+            se[c],
+            MITSUBA[c],
+            tungsten.to_array()[c]
+        );
+        assert!(z.abs() < Z_LIMIT, "channel {c}: {} ± {} vs Mitsuba {} (z = {z:.2})", m[c], se[c], MITSUBA[c]);
     }
 }
 

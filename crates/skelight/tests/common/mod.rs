@@ -8,6 +8,7 @@ use skelight::eval::{block_means, relative_block_t_statistic};
 use skelight::film::Film;
 use skelight::imageio::Image;
 use skelight::integrator::{by_name, render, Integrator, RenderOptions};
+use skelight::scene::load::load;
 use skelight::scene::Scene;
 
 /// The project's `../shared` folder (beside the repository), which CI provides.
@@ -157,4 +158,24 @@ pub fn estimators_agree(scene: &Scene, runs: &[(&str, u32)]) {
         println!("{first} vs {name}: block T {t:.2}");
         assert!(t < T_LIMIT, "{first} vs {name}: block T = {t:.2}");
     }
+}
+
+/// A conformance scene with its XML text edited by `edit`, loaded from a scratch folder.
+pub fn edited_conformance_scene(name: &str, edit: impl Fn(String) -> String, w: usize, h: usize) -> Scene {
+    let scenes = shared_dir().join("conformance/scenes");
+    let text = std::fs::read_to_string(scenes.join(format!("{name}.xml"))).unwrap();
+    let edited = edit(text.clone());
+    assert_ne!(edited, text, "{name}: the edit changed nothing");
+    let dir: PathBuf = std::env::temp_dir().join(format!("skelight-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // The meshes and textures scenes may refer to (inside their folder).
+    for f in ["sphere.obj", "checker.png", "leaf.png", "sky.exr"] {
+        std::fs::copy(scenes.join(f), dir.join(f)).unwrap();
+    }
+    let path = dir.join(format!("{name}.xml"));
+    std::fs::write(&path, edited).unwrap();
+    let mut scene = load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::remove_dir_all(&dir).ok();
+    scene.set_resolution(w, h);
+    scene
 }
