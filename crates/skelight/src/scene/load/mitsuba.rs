@@ -3,6 +3,7 @@
 //! chains, shapes, BSDFs, textures, emitters, sensor, film and integrator settings.
 //! Unsupported plugins produce a warning and a visible fallback (magenta), never silence.
 
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -10,6 +11,7 @@ use std::sync::Arc;
 use roxmltree::{Document, Node};
 
 mod bsdf;
+mod depth;
 mod emitter;
 
 use super::{confined_path, LoadError};
@@ -24,6 +26,7 @@ use crate::math::{vec3, Frame, Transform, Vec3};
 use crate::scene::shapes::{self, TriangleData};
 use crate::scene::{Mesh, RenderSettings, SceneDescription};
 use crate::texture::{Bitmap, TexFilter, Texture, UvTransform};
+use depth::MAX_XML_DEPTH;
 
 /// `fooBar` and `foo_bar` name the same parameter; so do `intIOR` and `int_ior`.
 pub fn normalize_name(s: &str) -> String {
@@ -45,6 +48,7 @@ struct MaterialRef {
     alpha: Option<Texture>,
 }
 
+#[derive(Clone)]
 struct Parsed {
     bsdf: Bsdf,
     perturbation: Option<Perturbation>,
@@ -57,8 +61,11 @@ pub struct Loader {
     defines: HashMap<String, String>,
     overrides: HashMap<String, String>,
     materials: HashMap<String, MaterialRef>,
-    textures: HashMap<String, Texture>,
-    bitmaps: std::cell::RefCell<HashMap<(PathBuf, bool, bool), Arc<Bitmap>>>,
+    /// Textures by id; filled while textures are read, nested ones included.
+    textures: RefCell<HashMap<String, Texture>>,
+    /// Warnings from texture reading, which only borrows the loader.
+    texture_warnings: RefCell<Vec<String>>,
+    bitmaps: RefCell<HashMap<(PathBuf, bool, bool), Arc<Bitmap>>>,
     /// Shared default materials: [non-emitters, emitters].
     default_materials: [Option<u32>; 2],
     desc: SceneDescription,
@@ -66,7 +73,14 @@ pub struct Loader {
     file: PathBuf,
     fov: (f32, FovAxis),
     version_major: u32,
+    /// The file being read and those including it, to refuse an `<include>` cycle.
+    open_files: Vec<PathBuf>,
+    /// Files included so far: a tree of includes may not grow without bound either.
+    files_read: usize,
 }
+
+/// Most `<include>`s one scene may read, repeats included.
+const MAX_INCLUDES: usize = 1000;
 
 type R<T> = Result<T, LoadError>;
 
@@ -77,18 +91,23 @@ impl Loader {
             defines: HashMap::new(),
             overrides: overrides.iter().cloned().collect(),
             materials: HashMap::new(),
-            textures: HashMap::new(),
+            textures: Default::default(),
+            texture_warnings: Default::default(),
             bitmaps: Default::default(),
             default_materials: [None; 2],
             desc: SceneDescription::default(),
             file: PathBuf::new(),
             fov: (45.0, FovAxis::X),
             version_major: 3,
+            open_files: Vec::new(),
+            files_read: 0,
         }
     }
 
     pub fn load(mut self, path: &Path) -> R<SceneDescription> {
         self.load_file(path, true)?;
+        let texture_warnings = self.texture_warnings.take();
+        self.desc.warnings.extend(texture_warnings);
         if self.desc.camera.is_none() {
             self.warn(format!("{}: no sensor; using a default camera looking at the scene", path.display()));
         }
@@ -113,6 +132,9 @@ impl Loader {
 
     fn load_file(&mut self, path: &Path, top: bool) -> R<()> {
         let text = super::read_text(path)?;
+        if let Some(line) = depth::too_deep_at(&text, MAX_XML_DEPTH) {
+            return Err(LoadError::at(path, line, format!("elements are nested more than {MAX_XML_DEPTH} deep")));
+        }
         let doc = Document::parse(&text).map_err(|e| {
             let p = e.pos();
             LoadError::at(path, p.row as usize, format!("malformed XML: {e}"))
@@ -135,9 +157,11 @@ impl Loader {
             let value = n.attribute("value").ok_or_else(|| self.err(n, "<default> needs a value"))?;
             self.defines.entry(name.to_string()).or_insert_with(|| value.to_string());
         }
+        self.open_files.push(path.canonicalize().unwrap_or_else(|_| path.to_path_buf()));
         for n in root.children().filter(|n| n.is_element()) {
             self.scene_child(n)?;
         }
+        self.open_files.pop();
         self.file = saved;
         Ok(())
     }
@@ -148,22 +172,33 @@ impl Loader {
             "include" => {
                 let f = self.attr(n, "filename")?.ok_or_else(|| self.err(n, "<include> needs a filename"))?;
                 let p = self.resolve(n, &f)?;
+                if self.open_files.contains(&p.canonicalize().unwrap_or_else(|_| p.clone())) {
+                    return Err(self.err(n, format!("'{f}' includes itself (an <include> cycle)")));
+                }
+                self.files_read += 1;
+                if self.files_read > MAX_INCLUDES {
+                    return Err(self.err(n, format!("more than {MAX_INCLUDES} <include>s in one scene")));
+                }
                 self.load_file(&p, false)
             }
             "integrator" => self.integrator(n),
             "sensor" | "camera" => self.sensor(n),
             "shape" => self.shape(n),
-            "bsdf" => {
-                let id = self.attr(n, "id")?.ok_or_else(|| self.err(n, "a top-level <bsdf> needs an id"))?;
-                let m = self.material(n)?;
-                self.materials.insert(id, m);
-                Ok(())
-            }
-            "texture" => {
-                let id = self.attr(n, "id")?.ok_or_else(|| self.err(n, "a top-level <texture> needs an id"))?;
-                let t = self.texture_node(n)?;
-                self.textures.insert(id, t);
-                Ok(())
+            // Mitsuba 0.x loads unnamed top-level objects: nothing can refer to them, but
+            // the ids of the objects nested in them are registered.
+            "bsdf" | "texture" => {
+                if n.attribute("id").is_none() {
+                    let kind = n.tag_name().name();
+                    self.warn_at(
+                        n,
+                        format!("this top-level <{kind}> has no id, so only what is nested in it can be referenced"),
+                    );
+                }
+                if n.tag_name().name() == "bsdf" {
+                    self.material(n).map(|_| ())
+                } else {
+                    self.texture_node(n).map(|_| ())
+                }
             }
             "emitter" => self.emitter(n),
             other => {
@@ -421,7 +456,11 @@ impl Loader {
             "texture" => self.texture_node(p),
             "ref" => {
                 let id = self.attr(p, "id")?.ok_or_else(|| self.err(p, "<ref> needs an id"))?;
-                self.textures.get(&id).cloned().ok_or_else(|| self.err(p, format!("no texture with id '{id}'")))
+                self.textures
+                    .borrow()
+                    .get(&id)
+                    .cloned()
+                    .ok_or_else(|| self.err(p, format!("no texture with id '{id}'")))
             }
             _ => Ok(Texture::Constant(self.color_of(p)?)),
         }
@@ -444,7 +483,16 @@ impl Loader {
         ))
     }
 
+    /// A `<texture>` element; one with an `id` can then be referenced.
     fn texture_node(&self, t: Node) -> R<Texture> {
+        let tex = self.texture_of_type(t)?;
+        if let Some(id) = self.attr(t, "id")? {
+            self.textures.borrow_mut().insert(id, tex.clone());
+        }
+        Ok(tex)
+    }
+
+    fn texture_of_type(&self, t: Node) -> R<Texture> {
         let ty = self.attr(t, "type")?.unwrap_or_default();
         match ty.as_str() {
             "bitmap" => {
@@ -469,6 +517,7 @@ impl Loader {
                     Some(c) => {
                         let id = self.attr(c, "id")?.unwrap_or_default();
                         self.textures
+                            .borrow()
                             .get(&id)
                             .cloned()
                             .ok_or_else(|| self.err(c, format!("no texture with id '{id}'")))?
@@ -477,7 +526,15 @@ impl Loader {
                 };
                 Ok(Texture::Scale { scale: self.float(t, "scale", 1.0)?, inner: Box::new(inner) })
             }
-            other => Err(self.err(t, format!("texture type '{other}' is not supported"))),
+            other => {
+                let pos = t.document().text_pos_at(t.range().start);
+                self.texture_warnings.borrow_mut().push(format!(
+                    "{}:{}: texture type '{other}' is not supported; rendered as magenta",
+                    self.file.display(),
+                    pos.row
+                ));
+                Ok(Texture::Constant(FALLBACK_MAGENTA))
+            }
         }
     }
 
@@ -592,6 +649,10 @@ impl Loader {
                         .cloned()
                         .ok_or_else(|| self.err(c, format!("no bsdf with id '{id}'")))?;
                     mref = Some(m);
+                }
+                "medium" | "subsurface" => {
+                    let what = c.tag_name().name();
+                    self.warn_at(c, format!("<{what}> is not supported; the shape is rendered without it"));
                 }
                 _ => {}
             }

@@ -10,13 +10,26 @@ use crate::material::microfacet::{Microfacet, MicrofacetType};
 use crate::material::*;
 use crate::texture::Texture;
 
+/// Most BSDFs one material may be made of; real ones have a handful.
+const MAX_BSDF_NODES: usize = 256;
+
 impl Loader {
     pub(super) fn material(&mut self, n: Node) -> R<MaterialRef> {
         let p = self.bsdf(n)?;
-        let id = self.attr(n, "id")?.unwrap_or_else(|| format!("anonymous{}", self.desc.materials.len()));
+        self.add_material(n, p)
+    }
+
+    /// Adds a parsed BSDF to the scene's materials; one with an `id` can then be referenced.
+    fn add_material(&mut self, n: Node, p: Parsed) -> R<MaterialRef> {
+        let id = self.attr(n, "id")?;
         let index = self.desc.materials.len() as u32;
-        self.desc.materials.push(Material { name: id, bsdf: p.bsdf, perturbation: p.perturbation });
-        Ok(MaterialRef { index, alpha: p.alpha })
+        let name = id.clone().unwrap_or_else(|| format!("anonymous{index}"));
+        self.desc.materials.push(Material { name, bsdf: p.bsdf, perturbation: p.perturbation });
+        let m = MaterialRef { index, alpha: p.alpha };
+        if let Some(id) = id {
+            self.materials.insert(id, m.clone());
+        }
+        Ok(m)
     }
 
     fn nested_bsdfs<'a, 'i>(&self, n: Node<'a, 'i>) -> Vec<Node<'a, 'i>> {
@@ -38,7 +51,12 @@ impl Loader {
             let mat = &self.desc.materials[m.index as usize];
             return Ok(Parsed { bsdf: mat.bsdf.clone(), perturbation: mat.perturbation.clone(), alpha: m.alpha });
         }
-        self.bsdf(c)
+        let p = self.bsdf(c)?;
+        // Mitsuba 0.x files refer to BSDFs nested in others (a bump map's inner BSDF) by id.
+        if c.attribute("id").is_some() {
+            self.add_material(c, p.clone())?;
+        }
+        Ok(p)
     }
 
     fn distribution(&self, n: Node) -> R<Microfacet> {
@@ -47,16 +65,38 @@ impl Loader {
             "ggx" => MicrofacetType::Ggx,
             other => return Err(self.err(n, format!("unknown microfacet distribution '{other}'"))),
         };
-        let scalar = |name: &str, d: f32| -> R<f32> {
-            match self.prop(n, name) {
-                Some(p) if p.tag_name().name() == "texture" || p.tag_name().name() == "ref" => {
-                    Ok(self.texture(n, name, Rgb::splat(d))?.mean().mean())
-                }
-                _ => self.float(n, name, d),
+        let alpha = self.scalar(n, "alpha", 0.1)?;
+        Ok(Microfacet::new(kind, self.scalar(n, "alpha_u", alpha)?, self.scalar(n, "alpha_v", alpha)?))
+    }
+
+    /// A number, or the mean of a texture where one is given (roughness maps).
+    fn scalar(&self, n: Node, name: &str, default: f32) -> R<f32> {
+        match self.prop(n, name) {
+            Some(p) if p.tag_name().name() == "texture" || p.tag_name().name() == "ref" => {
+                Ok(self.texture(n, name, Rgb::splat(default))?.mean().mean())
             }
+            _ => self.float(n, name, default),
+        }
+    }
+
+    /// Mitsuba 0.x's `ward` (0.4 and earlier named the variant `type` and the roughnesses
+    /// `alphaX`, `alphaY`).
+    fn ward(&self, n: Node) -> R<Ward> {
+        let name = match self.string(n, "variant")? {
+            Some(v) => v,
+            None => self.string(n, "type")?.unwrap_or_else(|| "balanced".into()),
         };
-        let alpha = scalar("alpha", 0.1)?;
-        Ok(Microfacet::new(kind, scalar("alpha_u", alpha)?, scalar("alpha_v", alpha)?))
+        let variant = WardVariant::from_name(&name)
+            .ok_or_else(|| self.err(n, format!("ward: unknown variant '{name}' (ward, ward-duer or balanced)")))?;
+        let alpha = self.scalar(n, "alpha", 0.1)?;
+        let alpha_u = self.scalar(n, "alpha_u", self.scalar(n, "alpha_x", alpha)?)?;
+        let alpha_v = self.scalar(n, "alpha_v", self.scalar(n, "alpha_y", alpha)?)?;
+        if !(alpha_u > 0.0 && alpha_v > 0.0) {
+            return Err(self.err(n, format!("ward: alpha_u {alpha_u} and alpha_v {alpha_v} must be positive")));
+        }
+        let diffuse = self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?;
+        let specular = self.texture(n, "specular_reflectance", Rgb::splat(0.2))?;
+        Ok(Ward::new(variant, alpha_u, alpha_v, diffuse, specular))
     }
 
     fn eta(&self, n: Node, int_default: f32) -> R<f32> {
@@ -77,7 +117,17 @@ impl Loader {
         Ok((eta / ext, k / ext))
     }
 
+    /// A `<bsdf>` element, refused when `<ref>`s make it grow past [`MAX_BSDF_NODES`]: a
+    /// chain of two-sided BSDFs, each referring to the previous one, doubles at each link.
     fn bsdf(&mut self, n: Node) -> R<Parsed> {
+        let p = self.bsdf_of_type(n)?;
+        if p.bsdf.node_count() > MAX_BSDF_NODES {
+            return Err(self.err(n, format!("this BSDF is made of more than {MAX_BSDF_NODES} BSDFs (through <ref>s)")));
+        }
+        Ok(p)
+    }
+
+    fn bsdf_of_type(&mut self, n: Node) -> R<Parsed> {
         let ty = self.attr(n, "type")?.unwrap_or_default();
         let plain = |bsdf: Bsdf| Ok(Parsed { bsdf, perturbation: None, alpha: None });
         match ty.as_str() {
@@ -139,6 +189,7 @@ impl Loader {
                 self.texture(n, "specular_reflectance", Rgb::splat(0.2))?,
                 self.float(n, "exponent", 30.0)?,
             ))),
+            "ward" => plain(Bsdf::Ward(self.ward(n)?)),
             "coating" | "roughcoating" => {
                 if ty == "roughcoating" {
                     self.warn(format!("{}: roughcoating is rendered as a smooth coating", self.file.display()));
@@ -207,5 +258,40 @@ impl Loader {
         self.desc.materials.push(Material::new(name, Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(value) })));
         self.default_materials[slot] = Some(i);
         i
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::material::{Bsdf, WardVariant};
+
+    fn first_bsdf(name: &str, bsdf: &str) -> Result<Bsdf, String> {
+        let dir = std::env::temp_dir().join(format!("skelight-mitsuba-bsdf-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("s.xml");
+        std::fs::write(&path, format!(r#"<scene version="0.6.0"><shape type="rectangle">{bsdf}</shape></scene>"#))
+            .unwrap();
+        let scene = crate::scene::load::load(&path, &[]).map_err(|e| e.to_string());
+        let _ = std::fs::remove_dir_all(&dir);
+        let scene = scene?;
+        Ok(scene.materials[scene.meshes[0].material as usize].bsdf.clone())
+    }
+
+    /// Mitsuba 0.6's names and defaults; reflectances summing past 1 are scaled down.
+    #[test]
+    fn ward_reads_mitsuba_parameters() {
+        let Bsdf::Ward(w) = first_bsdf("ward", r#"<bsdf type="ward"/>"#).unwrap() else { panic!("not ward") };
+        assert_eq!((w.variant, w.alpha_u, w.alpha_v), (WardVariant::Balanced, 0.1, 0.1));
+        assert_eq!((w.diffuse.mean().g, w.specular.mean().g), (0.5, 0.2));
+        let xml = r#"<bsdf type="ward"><string name="variant" value="ward-duer"/><float name="alphaU" value="0.2"/>
+            <float name="alphaV" value="0.4"/><spectrum name="specularReflectance" value="0.9"/>
+            <rgb name="diffuseReflectance" value="0.3"/></bsdf>"#;
+        let Bsdf::Ward(w) = first_bsdf("duer", xml).unwrap() else { panic!("not ward") };
+        assert_eq!((w.variant, w.alpha_u, w.alpha_v), (WardVariant::WardDuer, 0.2, 0.4));
+        assert!((w.diffuse.mean().g + w.specular.mean().g - 1.0).abs() < 1e-6, "scaled to a sum of 1");
+        let e = first_bsdf("bad", r#"<bsdf type="ward"><string name="variant" value="blinn"/></bsdf>"#).unwrap_err();
+        assert!(e.contains("s.xml:") && e.contains("unknown variant 'blinn'"), "{e}");
+        let e = first_bsdf("zero", r#"<bsdf type="ward"><float name="alphaU" value="0"/></bsdf>"#).unwrap_err();
+        assert!(e.contains("must be positive"), "{e}");
     }
 }
