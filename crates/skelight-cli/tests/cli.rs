@@ -413,6 +413,18 @@ fn huge_window_exr(path: &Path) {
     std::fs::write(path, bytes).unwrap();
 }
 
+/// A mesh vertex at 1e30 and no camera: both commands that load a scene say so.
+#[test]
+fn render_and_skeleton_refuse_far_off_geometry() {
+    let d = tmp("far");
+    let obj = d.join("far.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 1e30\nf 1 2 3\n").unwrap();
+    let (obj, out) = (obj.to_str().unwrap(), d.join("out"));
+    let out = out.to_str().unwrap();
+    run_fails(&["render", obj, "--spp", "1", "-o", &format!("{out}.exr"), "-q"], &["far.obj", "too far to render"]);
+    run_fails(&["skeleton", obj, "--resolution", "16", "-o", out, "--quiet"], &["far.obj", "too far to render"]);
+}
+
 #[test]
 fn merge_and_diff_refuse_impossible_and_non_finite_inputs() {
     let d = tmp("badexr");

@@ -165,13 +165,18 @@ fn read_primitive(prim: &gltf::Primitive, buffers: &[gltf::buffer::Data]) -> Opt
     Some((data, indices))
 }
 
+/// Reads a .gltf or .glb file. The `gltf` crate's accessors unwrap what its validation lets
+/// through (an image with neither a URI nor a buffer view, say), so the whole reading runs
+/// behind a panic boundary.
 pub fn load_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
+    catch_panic("glTF data", || read_gltf(path)).unwrap_or_else(|e| Err(LoadError::at(path, 0, e)))
+}
+
+fn read_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
     let err = |msg: String| LoadError::at(path, 0, msg);
     check_glb_length(path).map_err(&err)?;
     // Refuse external files outside the scene folder before anything is read.
-    let doc = catch_panic("glTF data", || gltf::Gltf::open(path))
-        .map_err(&err)?
-        .map_err(|e| err(format!("cannot parse glTF: {e}")))?;
+    let doc = gltf::Gltf::open(path).map_err(|e| err(format!("cannot parse glTF: {e}")))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let uris = doc
         .buffers()
@@ -186,9 +191,7 @@ pub fn load_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
     for uri in uris.filter(|u| !u.starts_with("data:")) {
         confined_path(dir, &uri).map_err(&err)?;
     }
-    let (document, buffers, images) = catch_panic("glTF data", || gltf::import(path))
-        .map_err(&err)?
-        .map_err(|e| err(format!("cannot load glTF data: {e}")))?;
+    let (document, buffers, images) = gltf::import(path).map_err(|e| err(format!("cannot load glTF data: {e}")))?;
     let mut desc = SceneDescription {
         settings: RenderSettings { filter: Filter::Box, ..RenderSettings::default() },
         ..Default::default()
@@ -237,8 +240,7 @@ pub fn load_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
                     continue;
                 }
                 check_accessors(&prim).map_err(|e| err(format!("mesh {}: {e}", mesh.index())))?;
-                let (mut data, indices) = catch_panic("glTF data", || read_primitive(&prim, &buffers))
-                    .map_err(|e| err(format!("mesh {}: {e}", mesh.index())))?
+                let (mut data, indices) = read_primitive(&prim, &buffers)
                     .ok_or_else(|| err(format!("mesh {} has no positions", mesh.index())))?;
                 let nv = data.positions.len() as u32;
                 if let Some(bad) = indices.iter().find(|&&i| i >= nv) {
