@@ -370,11 +370,15 @@ fn broken_gltf_files() {
     assert_mentions(&load_err(&p), &["cycle.gltf", "node 0 is reached twice"]);
     let p = d.file("loop.gltf", triangle_gltf(r#"[{"children": [1]}, {"mesh": 0, "children": [0]}]"#, 5125).as_bytes());
     assert_mentions(&load_err(&p), &["loop.gltf", "reached twice"]);
-    // Found by the fuzzer: an image with neither a URI nor a buffer view passes the gltf
+    // Found by the fuzzer: a GLB header claiming fewer bytes than itself (the gltf crate
+    // then allocates 4 GB), and an image with neither a URI nor a buffer view passes the gltf
     // crate's validation, then its accessor unwraps.
     let no_source = triangle_gltf(r#"[{"mesh": 0}]"#, 5125).replacen('{', r#"{"images": [{"name": "x"}], "#, 1);
     let p = d.file("image.gltf", no_source.as_bytes());
     assert_mentions(&load_err(&p), &["image.gltf", "malformed glTF data"]);
+    let mut glb = b"glTF\x02\0\0\0\x04\0\0\0".to_vec();
+    glb.extend_from_slice(&[0; 64]);
+    assert_mentions(&load_err(&d.file("short.glb", &glb)), &["short.glb", "GLB header claims 4 bytes"]);
 }
 
 /// Mitsuba 0.6 loads a top-level object without an id and registers the ids nested in it

@@ -99,8 +99,8 @@ fn material_of(m: &gltf::Material, images: &[gltf::image::Data], warnings: &mut 
     Material::new(name, bsdf)
 }
 
-/// Refuses a binary glTF whose header claims more bytes than the file has: the `gltf`
-/// crate allocates what the header says before reading.
+/// Refuses a binary glTF whose header claims more bytes than the file has, or fewer than
+/// the header itself: the `gltf` crate allocates the claimed length less 12 before reading.
 fn check_glb_length(path: &Path) -> Result<(), String> {
     use std::io::Read;
     let mut head = [0u8; 12];
@@ -110,7 +110,7 @@ fn check_glb_length(path: &Path) -> Result<(), String> {
         return Ok(());
     }
     let claimed = u32::from_le_bytes([head[8], head[9], head[10], head[11]]) as u64;
-    if claimed > file_len {
+    if !(12..=file_len).contains(&claimed) {
         return Err(format!("its GLB header claims {claimed} bytes, but the file has {file_len}"));
     }
     Ok(())
