@@ -718,12 +718,28 @@ fn compare_cmd(a: CompareArgs) -> Result<()> {
     Ok(())
 }
 
+/// Refuses an input with NaN or infinite pixels: merged or compared, they would spread into
+/// every result without a word.
+fn refuse_non_finite(path: &Path, img: &Image, verb: &str) -> Result<()> {
+    if let Some((count, (x, y))) = img.non_finite() {
+        bail!(
+            "{}: {count} pixels are NaN or infinite (the first at x {x}, y {y}); refusing to {verb} it",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 /// Merges independent renders of one scene, weighted by their sample counts.
 fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
     let mut loaded = Vec::new();
     for p in parts {
         let (img, attrs) = Image::load_exr_with_attributes(p)?;
+        refuse_non_finite(p, &img, "merge")?;
         let spp = attrs.iter().find(|(k, _)| k == "skelight.spp").map(|a| a.1);
+        if let Some(n) = spp.filter(|n| !(*n >= 1.0 && n.fract() == 0.0)) {
+            bail!("{}: its header's sample count skelight.spp = {n} is not a positive whole number", p.display());
+        }
         let n = match (spp, equal_weights) {
             (_, true) => 1.0,
             (Some(n), false) => n,
@@ -814,6 +830,8 @@ fn main() {
         Command::Diff { image, reference, error_image, max_error } => (|| {
             let ia = Image::load(&image)?;
             let ib = Image::load(&reference)?;
+            refuse_non_finite(&image, &ia, "compare")?;
+            refuse_non_finite(&reference, &ib, "compare")?;
             let m = eval::metrics(&ia, &ib)?;
             if let Some(p) = &error_image {
                 eval::error_image(&ia, &ib, max_error)?.save(p)?;

@@ -389,3 +389,79 @@ fn compare_writes_a_complete_report() {
         .unwrap();
     assert!(!bad.status.success());
 }
+
+/// Runs `skelight args`, which must fail with an error (not a panic or an abort) whose
+/// message mentions every one of `parts`.
+fn run_fails(args: &[&str], parts: &[&str]) {
+    let out = bin().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "skelight {args:?} should fail with an error: {err}");
+    assert!(!err.contains("panicked"), "skelight {args:?} panicked: {err}");
+    for p in parts {
+        assert!(err.contains(p), "skelight {args:?}: {err:?} does not mention {p:?}");
+    }
+}
+
+/// An EXR whose header claims a data window of 10^8 × 10^8 pixels around one scan line of
+/// data (and no chunk count, which few writers give): decoding it would first allocate
+/// 1.2e17 bytes.
+fn huge_window_exr(path: &Path) {
+    Image::new(1, 1).save_exr(path).unwrap();
+    let mut bytes = std::fs::read(path).unwrap();
+    let count = b"chunkCount\0";
+    let at = bytes.windows(count.len()).position(|w| w == count).unwrap();
+    bytes[at..at + count.len()].copy_from_slice(b"chunkCounx\0");
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    for (k, v) in [0i32, 0, 99_999_999, 99_999_999].iter().enumerate() {
+        bytes[at + 4 * k..at + 4 * k + 4].copy_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// A mesh vertex at 1e30 and no camera: both commands that load a scene say so.
+#[test]
+fn render_and_skeleton_refuse_far_off_geometry() {
+    let d = tmp("far");
+    let obj = d.join("far.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 1e30\nf 1 2 3\n").unwrap();
+    let (obj, out) = (obj.to_str().unwrap(), d.join("out"));
+    let out = out.to_str().unwrap();
+    run_fails(&["render", obj, "--spp", "1", "-o", &format!("{out}.exr"), "-q"], &["far.obj", "too far to render"]);
+    run_fails(&["skeleton", obj, "--resolution", "16", "-o", out, "--quiet"], &["far.obj", "too far to render"]);
+}
+
+#[test]
+fn merge_and_diff_refuse_impossible_and_non_finite_inputs() {
+    let d = tmp("badexr");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (ok, huge, nan, inf) = (d.join("ok.exr"), d.join("huge.exr"), d.join("nan.exr"), d.join("inf.exr"));
+    let out = s(&d.join("out.exr"));
+    Image::new(4, 4).save_exr_with(&ok, &[("skelight.spp", 4.0)]).unwrap();
+    huge_window_exr(&huge);
+    run_fails(&["merge", &s(&ok), &s(&huge), "-o", &out], &["huge.exr", "data window", "more than"]);
+    run_fails(&["diff", &s(&huge), &s(&ok)], &["huge.exr", "data window"]);
+    for (p, v) in [(&nan, f32::NAN), (&inf, f32::INFINITY)] {
+        let mut img = Image::new(4, 4);
+        img.pixels[5] = skelight::color::Rgb::splat(v);
+        img.save_exr_with(p, &[("skelight.spp", 4.0)]).unwrap();
+        let name = p.file_name().unwrap().to_str().unwrap();
+        run_fails(&["merge", &s(&ok), &s(p), "-o", &out], &[name, "1 pixels are NaN or infinite", "x 1, y 1"]);
+        run_fails(&["diff", &s(p), &s(&ok)], &[name, "NaN or infinite"]);
+        run_fails(&["diff", &s(&ok), &s(p)], &[name, "NaN or infinite"]);
+    }
+    assert!(!d.join("out.exr").exists());
+    for spp in [0.0, -1.0, 2.5, f64::NAN] {
+        let p = d.join("spp.exr");
+        Image::new(4, 4).save_exr_with(&p, &[("skelight.spp", spp)]).unwrap();
+        for extra in [&[][..], &["--equal-weights"][..]] {
+            let mut args = vec!["merge".to_string(), s(&ok), s(&p), "-o".into(), out.clone()];
+            args.extend(extra.iter().map(|a| a.to_string()));
+            run_fails(
+                &args.iter().map(String::as_str).collect::<Vec<_>>(),
+                &["spp.exr", "not a positive whole number"],
+            );
+        }
+    }
+    run_ok(&["merge", &s(&ok), &s(&ok), "-o", &out]);
+}

@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::boundary::catch_panic;
 use crate::color::{linear_to_srgb, rgb, Rgb};
 
 /// A linear RGB image, row-major, top row first.
@@ -35,6 +36,13 @@ impl Image {
         Rgb::from_array(s.map(|v| (v / n) as f32))
     }
 
+    /// How many pixels have a NaN or infinite channel, and where the first one is.
+    pub fn non_finite(&self) -> Option<(usize, (usize, usize))> {
+        let first = self.pixels.iter().position(|p| !p.is_finite())?;
+        let count = self.pixels.iter().filter(|p| !p.is_finite()).count();
+        Some((count, (first % self.width, first / self.width)))
+    }
+
     /// Loads EXR, PNG or JPEG by extension. Values are returned as stored (no sRGB decoding).
     pub fn load(path: &Path) -> Result<Image, ImageError> {
         let err = |reason: String| ImageError::Read { path: path.to_path_buf(), reason };
@@ -45,12 +53,7 @@ impl Image {
         if ext == "exr" {
             return load_exr(path).map(|(img, _)| img).map_err(err);
         }
-        let img = image::ImageReader::open(path)
-            .map_err(|e| err(e.to_string()))?
-            .with_guessed_format()
-            .map_err(|e| err(e.to_string()))?
-            .decode()
-            .map_err(|e| err(e.to_string()))?;
+        let img = decode_image(path).map_err(err)?;
         let rgb32 = img.to_rgb32f();
         let (w, h) = (rgb32.width() as usize, rgb32.height() as usize);
         if w == 0 || h == 0 {
@@ -67,12 +70,7 @@ impl Image {
         if ext == "exr" {
             return Image::load(path);
         }
-        let img = image::ImageReader::open(path)
-            .map_err(|e| err(e.to_string()))?
-            .with_guessed_format()
-            .map_err(|e| err(e.to_string()))?
-            .decode()
-            .map_err(|e| err(e.to_string()))?;
+        let img = decode_image(path).map_err(err)?;
         if !img.color().has_alpha() {
             return Image::load(path);
         }
@@ -153,6 +151,18 @@ impl Image {
     }
 }
 
+/// Decodes a PNG or JPEG file (the `image` crate bounds its allocations itself).
+fn decode_image(path: &Path) -> Result<image::DynamicImage, String> {
+    catch_panic("image data", || {
+        image::ImageReader::open(path)
+            .map_err(|e| e.to_string())?
+            .with_guessed_format()
+            .map_err(|e| e.to_string())?
+            .decode()
+            .map_err(|e| e.to_string())
+    })?
+}
+
 /// Runs `write` on a temporary file beside `path`, then renames it into place.
 pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<(), String> {
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
@@ -180,7 +190,32 @@ pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> Result<(), String> {
     write_atomically(path, |tmp| std::fs::write(tmp, bytes).map_err(|e| e.to_string()))
 }
 
+/// Most pixels an image may have (as many as the largest film).
+pub const MAX_PIXELS: usize = 1 << 28;
+
+/// Refuses an EXR whose layers claim more pixels than its size can hold before anything is
+/// allocated for them: even compressed, a pixel takes a byte in at most ~1000.
+fn check_exr_header(path: &Path) -> Result<(), String> {
+    let file_len = std::fs::metadata(path).map_err(|e| e.to_string())?.len() as usize;
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| e.to_string())?;
+    for h in meta.headers.iter() {
+        let (w, hgt) = (h.layer_size.0, h.layer_size.1);
+        let pixels = w.saturating_mul(hgt);
+        if pixels > MAX_PIXELS || pixels / 1024 > file_len {
+            return Err(format!(
+                "its data window of {w}×{hgt} pixels is more than a {file_len}-byte file can hold (or over 2^28 pixels)"
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn load_exr(path: &Path) -> Result<(Image, Vec<(String, f64)>), String> {
+    check_exr_header(path)?;
+    catch_panic("EXR data", || decode_exr(path))?
+}
+
+fn decode_exr(path: &Path) -> Result<(Image, Vec<(String, f64)>), String> {
     use exr::prelude::*;
     let img = read_first_rgba_layer_from_file(
         path,

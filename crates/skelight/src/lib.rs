@@ -7,6 +7,7 @@
 // `!(x > 0.0)` is used on purpose throughout: unlike `x <= 0.0` it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod boundary;
 pub mod camera;
 pub mod checkpoint;
 pub mod color;

@@ -136,6 +136,17 @@ impl Texture {
         self.eval(uv).mean()
     }
 
+    /// Largest value per channel over the texture's domain, for bounds on reflectance.
+    pub fn max(&self) -> Rgb {
+        let per_channel = |a: Rgb, b: Rgb| Rgb::from_array([a.r.max(b.r), a.g.max(b.g), a.b.max(b.b)]);
+        match self {
+            Texture::Constant(c) => *c,
+            Texture::Bitmap { bitmap, .. } => bitmap.image.pixels.iter().fold(Rgb::BLACK, |m, p| per_channel(m, *p)),
+            Texture::Checkerboard { color0, color1, .. } => per_channel(*color0, *color1),
+            Texture::Scale { scale, inner } => inner.max() * *scale,
+        }
+    }
+
     /// Average over the texture's domain, for sampling weights.
     pub fn mean(&self) -> Rgb {
         match self {

@@ -1,6 +1,8 @@
 //! Malformed or hostile input must give a clear error that names the file (and the line,
 //! where there is one) and says what is wrong — never a panic, never a silent wrong image.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use skelight::integrator::{by_name, render, RenderOptions};
@@ -253,7 +255,145 @@ fn unknown_plugins_warn_and_render_visibly() {
     let body = r#"<shape type="rectangle"><bsdf type="hair"/></shape><emitter type="constant"/>"#;
     let s = load(&d.file("u.xml", scene(body).as_bytes()), &[]).unwrap();
     assert!(s.warnings.iter().any(|w| w.contains("hair") && w.contains("magenta")), "{:?}", s.warnings);
+    let body = r#"<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" type="vertexcolors"/></bsdf>
+        <medium name="interior" type="homogeneous"/></shape>"#;
+    let s = load(&d.file("t.xml", scene(body).as_bytes()), &[]).unwrap();
+    for what in ["vertexcolors", "<medium>"] {
+        assert!(s.warnings.iter().any(|w| w.contains("t.xml:") && w.contains(what)), "{what}: {:?}", s.warnings);
+    }
     let body = r#"<shape type="rectangle"/><integrator2/>"#;
     let s = load(&d.file("v.xml", scene(body).as_bytes()), &[]).unwrap();
     assert!(s.warnings.iter().any(|w| w.contains("integrator2")), "{:?}", s.warnings);
+}
+
+/// A file nested thousands deep would overflow the stack (the XML parser recurses per level):
+/// it is refused before parsing, whatever the elements are.
+#[test]
+fn deeply_nested_xml_is_refused() {
+    let d = Dir::new("deep");
+    let n = 12_500;
+    for (name, open, close) in [
+        ("bsdf", r#"<bsdf type="twosided">"#, "</bsdf>"),
+        ("shape", r#"<shape type="cube">"#, "</shape>"),
+        ("unknown", "<foo>", "</foo>"),
+    ] {
+        let body = format!("<shape type=\"rectangle\">\n{}{}</shape>", open.repeat(n), close.repeat(n));
+        let p = d.file(&format!("{name}.xml"), scene(&body).as_bytes());
+        assert_mentions(&load_err(&p), &[&format!("{name}.xml:6"), "nested more than 100 deep"]);
+    }
+}
+
+#[test]
+fn include_cycles_are_refused() {
+    let d = Dir::new("include");
+    let p = d.file("self.xml", scene(r#"<include filename="self.xml"/>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["self.xml:", "'self.xml' includes itself"]);
+    // Through another file, and with a mesh that made each round slow (a hang before).
+    d.file("m.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let mesh = r#"<shape type="obj"><string name="filename" value="m.obj"/></shape>"#;
+    d.file("b.xml", format!(r#"<scene version="3.0.0">{mesh}<include filename="a.xml"/></scene>"#).as_bytes());
+    let p = d.file("a.xml", scene(&format!(r#"{mesh}<include filename="b.xml"/>"#)).as_bytes());
+    assert_mentions(&load_err(&p), &["b.xml:", "'a.xml' includes itself"]);
+    // A file included twice side by side is no cycle.
+    let p = d.file("twice.xml", scene(r#"<include filename="m.xml"/><include filename="m.xml"/>"#).as_bytes());
+    d.file("m.xml", format!(r#"<scene version="3.0.0">{mesh}</scene>"#).as_bytes());
+    assert_eq!(load(&p, &[]).unwrap().triangle_count(), 2);
+}
+
+/// A `<ref>` names an object already read, so a chain ends and a cycle is an unknown id.
+#[test]
+fn ref_cycles_are_unknown_ids_and_chains_end() {
+    let d = Dir::new("ref");
+    let cycle = r#"<bsdf type="twosided" id="a"><ref id="b"/></bsdf><bsdf type="twosided" id="b"><ref id="a"/></bsdf>"#;
+    assert_mentions(&load_err(&d.file("c.xml", scene(cycle).as_bytes())), &["c.xml:", "no bsdf with id 'b'"]);
+    let own = r#"<bsdf type="twosided" id="a"><ref id="a"/></bsdf>"#;
+    assert_mentions(&load_err(&d.file("o.xml", scene(own).as_bytes())), &["o.xml:", "no bsdf with id 'a'"]);
+    let chain = |kind: &str, links: usize| {
+        let mut c = r#"<bsdf type="diffuse" id="b0"/>"#.to_string();
+        for i in 1..links {
+            c += &format!(r#"<bsdf type="{kind}" id="b{i}"><ref id="b{}"/></bsdf>"#, i - 1);
+        }
+        c + &format!(r#"<shape type="rectangle"><ref id="b{}"/></shape>"#, links - 1)
+    };
+    assert!(load(&d.file("chain.xml", scene(&chain("coating", 200)).as_bytes()), &[]).is_ok());
+    // Each two-sided link holds the previous one twice: 2^200 BSDFs before the limit.
+    let p = d.file("doubling.xml", scene(&chain("twosided", 200)).as_bytes());
+    assert_mentions(&load_err(&p), &["doubling.xml:", "made of more than 256 BSDFs"]);
+}
+
+/// Coordinates past 1e12 overflow the BVH's costs and the default view's distance in f32.
+#[test]
+fn huge_coordinates_are_refused() {
+    let d = Dir::new("huge");
+    let c01 = std::fs::read_to_string(common::shared_dir().join("conformance/scenes/c01_cbox_area.xml")).unwrap();
+    assert!(c01.contains(r#"<scale value="0.3"/>"#));
+    let p = d.file("c01.xml", c01.replace(r#"<scale value="0.3"/>"#, r#"<scale value="1e30"/>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["c01.xml", "too far to render"]);
+    // Without a camera, the default view is not built from them either.
+    let obj = d.file("far.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 1e30\nf 1 2 3\n");
+    assert_mentions(&load_err(&obj), &["far.obj", "too far to render"]);
+    let body = r#"<shape type="obj"><string name="filename" value="far.obj"/></shape>"#;
+    let p = d.file("nocam.xml", format!(r#"<scene version="3.0.0">{body}</scene>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["nocam.xml", "too far to render"]);
+    // Far but within range, the default view still frames it.
+    let p = d.file("ok.obj", b"v 0 0 1e11\nv 1 0 1e11\nv 0 1 1e11\nf 1 2 3\n");
+    assert!(load(&p, &[]).is_ok());
+}
+
+/// A one-triangle glTF around `nodes` and the index accessor's component type.
+fn triangle_gltf(nodes: &str, index_type: u32) -> String {
+    let mut bin = Vec::new();
+    for v in [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        bin.extend_from_slice(&v.to_le_bytes());
+    }
+    bin.extend_from_slice(&[0u8; 12]);
+    format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": {nodes},
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}}],
+  "buffers": [{{"byteLength": 48, "uri": "data:application/octet-stream;base64,{}"}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 12}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}},
+    {{"bufferView": 1, "componentType": {index_type}, "count": 3, "type": "SCALAR"}}]}}"#,
+        common::base64(&bin)
+    )
+}
+
+#[test]
+fn broken_gltf_files() {
+    let d = Dir::new("gltf");
+    let p = d.file("ok.gltf", triangle_gltf(r#"[{"mesh": 0}]"#, 5125).as_bytes());
+    assert_eq!(load(&p, &[]).unwrap().triangle_count(), 1);
+    let p = d.file("float.gltf", triangle_gltf(r#"[{"mesh": 0}]"#, 5126).as_bytes());
+    assert_mentions(&load_err(&p), &["float.gltf", "index accessor 1 holds F32"]);
+    let p = d.file("cycle.gltf", triangle_gltf(r#"[{"mesh": 0, "children": [0]}]"#, 5125).as_bytes());
+    assert_mentions(&load_err(&p), &["cycle.gltf", "node 0 is reached twice"]);
+    let p = d.file("loop.gltf", triangle_gltf(r#"[{"children": [1]}, {"mesh": 0, "children": [0]}]"#, 5125).as_bytes());
+    assert_mentions(&load_err(&p), &["loop.gltf", "reached twice"]);
+    // Found by the fuzzer: a GLB header claiming fewer bytes than itself (the gltf crate
+    // then allocates 4 GB), and an image with neither a URI nor a buffer view passes the gltf
+    // crate's validation, then its accessor unwraps.
+    let no_source = triangle_gltf(r#"[{"mesh": 0}]"#, 5125).replacen('{', r#"{"images": [{"name": "x"}], "#, 1);
+    let p = d.file("image.gltf", no_source.as_bytes());
+    assert_mentions(&load_err(&p), &["image.gltf", "malformed glTF data"]);
+    let mut glb = b"glTF\x02\0\0\0\x04\0\0\0".to_vec();
+    glb.extend_from_slice(&[0; 64]);
+    assert_mentions(&load_err(&d.file("short.glb", &glb)), &["short.glb", "GLB header claims 4 bytes"]);
+}
+
+/// Mitsuba 0.6 loads a top-level object without an id and registers the ids nested in it
+/// (Bitterli's scenes put the named BSDF inside an unnamed bump map).
+#[test]
+fn ids_nested_in_unnamed_top_level_objects_are_found() {
+    let d = Dir::new("unnamed");
+    let body = r#"<bsdf type="bumpmap"><texture type="checkerboard"/>
+        <bsdf type="roughplastic" id="Material"><rgb name="diffuseReflectance" value="0.2, 0.3, 0.4"/></bsdf></bsdf>
+        <texture type="scale"><texture type="checkerboard" id="checks"/></texture>
+        <shape type="rectangle"><ref id="Material"/></shape>
+        <shape type="rectangle"><bsdf type="diffuse"><ref name="reflectance" id="checks"/></bsdf></shape>"#;
+    let s = load(&d.file("u.xml", scene(body).as_bytes()), &[]).unwrap();
+    let m = &s.materials[s.meshes[0].material as usize];
+    assert_eq!(m.name, "Material");
+    assert!(matches!(m.bsdf, skelight::material::Bsdf::RoughPlastic(_)), "{:?}", m.bsdf);
+    assert!(s.warnings.iter().any(|w| w.contains("u.xml:") && w.contains("no id")), "{:?}", s.warnings);
 }

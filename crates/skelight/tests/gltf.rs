@@ -7,22 +7,6 @@ use common::*;
 use skelight::integrator::by_name;
 use skelight::scene::load::load;
 
-fn base64(bytes: &[u8]) -> String {
-    const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for c in bytes.chunks(3) {
-        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
-        for i in 0..4 {
-            if i <= c.len() {
-                out.push(T[(n >> (18 - 6 * i) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
-
 /// A 20×20 floor quad at y = 0 (base colour 0.5, fully rough), a point light of intensity
 /// 4π at height 2 above its centre, and a camera at height 1 looking straight down.
 fn floor_gltf(buffer_uri: Option<&str>) -> String {

@@ -11,6 +11,7 @@ pub mod fresnel;
 pub mod microfacet;
 mod phong;
 mod plastic;
+mod ward;
 
 pub use coating::Coating;
 pub use conductor::{Conductor, RoughConductor};
@@ -18,6 +19,7 @@ pub use dielectric::{Dielectric, RoughDielectric, ThinDielectric};
 pub use diffuse::{Diffuse, RoughDiffuse};
 pub use phong::Phong;
 pub use plastic::{Plastic, RoughPlastic};
+pub use ward::{Ward, WardVariant};
 
 use crate::color::Rgb;
 use crate::math::{vec3, Frame, Vec2, Vec3};
@@ -85,6 +87,31 @@ pub(crate) fn weighted_sample<M: BsdfModel + ?Sized>(
     Some(BsdfSample { wo, weight: model.eval(ctx, wi, wo) / pdf, pdf, delta: false })
 }
 
+/// Density of a glossy lobe mixed with a cosine-weighted diffuse base, the lobe sampled
+/// with probability `glossy_weight` (how Phong and Ward sample); upper hemisphere only.
+pub(crate) fn glossy_diffuse_pdf(glossy_weight: f32, lobe_pdf: impl FnOnce() -> f32, wi: Vec3, wo: Vec3) -> f32 {
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return 0.0;
+    }
+    glossy_weight * lobe_pdf() + (1.0 - glossy_weight) * crate::sampling::cosine_hemisphere_pdf(wo.z)
+}
+
+/// Samples that mixture: `lobe` maps `u2` to a direction of the glossy lobe.
+pub(crate) fn sample_glossy_diffuse<M: BsdfModel + ?Sized>(
+    model: &M,
+    ctx: &BsdfCtx,
+    wi: Vec3,
+    (u, u2): (f32, Vec2),
+    glossy_weight: f32,
+    lobe: impl FnOnce(Vec2) -> Vec3,
+) -> Option<BsdfSample> {
+    if wi.z <= 0.0 {
+        return None;
+    }
+    let wo = if u < glossy_weight { lobe(u2) } else { crate::sampling::cosine_hemisphere(u2) };
+    weighted_sample(model, ctx, wi, wo)
+}
+
 /// Density of cosine-weighted sampling, for upper-hemisphere pairs only.
 #[inline]
 pub(crate) fn upper_cosine_pdf(wi: Vec3, wo: Vec3) -> f32 {
@@ -107,6 +134,7 @@ pub enum Bsdf {
     Plastic(Plastic),
     RoughPlastic(RoughPlastic),
     Phong(Phong),
+    Ward(Ward),
     Coating(Coating),
     /// Front BSDF above the surface, back BSDF (mirrored) below it.
     TwoSided(Box<Bsdf>, Box<Bsdf>),
@@ -127,6 +155,7 @@ macro_rules! dispatch {
             Bsdf::Plastic($m) => $e,
             Bsdf::RoughPlastic($m) => $e,
             Bsdf::Phong($m) => $e,
+            Bsdf::Ward($m) => $e,
             Bsdf::Coating($m) => $e,
             Bsdf::TwoSided($f, $b) => $t,
             Bsdf::Black => $k,
@@ -179,6 +208,15 @@ impl Bsdf {
             | Bsdf::Coating(_) => true,
             Bsdf::TwoSided(f, b) => f.has_delta_lobe() || b.has_delta_lobe(),
             _ => false,
+        }
+    }
+
+    /// How many BSDFs this one is made of, itself included.
+    pub fn node_count(&self) -> usize {
+        match self {
+            Bsdf::TwoSided(f, b) => 1 + f.node_count() + b.node_count(),
+            Bsdf::Coating(c) => 1 + c.nested.node_count(),
+            _ => 1,
         }
     }
 
@@ -242,6 +280,9 @@ impl Perturbation {
     }
 }
 
+/// The colour that stands in for unsupported materials and textures, so that they show.
+pub const FALLBACK_MAGENTA: Rgb = Rgb { r: 0.8, g: 0.0, b: 0.8 };
+
 /// A surface's material: its BSDF and an optional normal perturbation.
 #[derive(Clone, Debug)]
 pub struct Material {
@@ -256,7 +297,7 @@ impl Material {
     }
     /// The visible fallback for unsupported materials: magenta diffuse.
     pub fn fallback(name: impl Into<String>) -> Material {
-        Material::new(name, Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(crate::color::rgb(0.8, 0.0, 0.8)) }))
+        Material::new(name, Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(FALLBACK_MAGENTA) }))
     }
 }
 

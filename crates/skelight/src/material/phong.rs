@@ -1,9 +1,8 @@
 //! Mitsuba 0.6's energy-normalised modified Phong model (the seeds' glossy material).
 
-use super::{weighted_sample, BsdfCtx, BsdfModel, BsdfSample};
+use super::{glossy_diffuse_pdf, sample_glossy_diffuse, BsdfCtx, BsdfModel, BsdfSample};
 use crate::color::Rgb;
 use crate::math::{vec3, Frame, Vec2, Vec3, INV_2PI, INV_PI, PI};
-use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::texture::Texture;
 
 #[derive(Clone, Debug)]
@@ -46,24 +45,15 @@ impl BsdfModel for Phong {
         f * wo.z
     }
     fn pdf(&self, _: &BsdfCtx, wi: Vec3, wo: Vec3) -> f32 {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return 0.0;
-        }
-        self.specular_weight * self.lobe_pdf(wi, wo) + (1.0 - self.specular_weight) * cosine_hemisphere_pdf(wo.z)
+        glossy_diffuse_pdf(self.specular_weight, || self.lobe_pdf(wi, wo), wi, wo)
     }
     fn sample(&self, ctx: &BsdfCtx, wi: Vec3, u: f32, u2: Vec2) -> Option<BsdfSample> {
-        if wi.z <= 0.0 {
-            return None;
-        }
-        let wo = if u < self.specular_weight {
+        sample_glossy_diffuse(self, ctx, wi, (u, u2), self.specular_weight, |u2| {
             let cos_a = u2.x.powf(1.0 / (self.exponent + 1.0));
             let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
             let phi = 2.0 * PI * u2.y;
             let lobe = Frame::from_normal(vec3(-wi.x, -wi.y, wi.z));
             lobe.to_world(vec3(sin_a * phi.cos(), sin_a * phi.sin(), cos_a))
-        } else {
-            cosine_hemisphere(u2)
-        };
-        weighted_sample(self, ctx, wi, wo)
+        })
     }
 }

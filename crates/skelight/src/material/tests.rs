@@ -68,6 +68,15 @@ fn test_bsdfs() -> Vec<(&'static str, Bsdf)> {
         ("roughplastic", Bsdf::RoughPlastic(RoughPlastic::new(ggx, Texture::constant(0.8), white(), 1.5, true))),
         ("phong", Bsdf::Phong(Phong::new(Texture::constant(0.5), Texture::constant(0.4), 20.0))),
         (
+            "ward-balanced-aniso",
+            Bsdf::Ward(Ward::new(WardVariant::Balanced, 0.1, 0.3, Texture::constant(0.5), Texture::constant(0.5))),
+        ),
+        ("ward", Bsdf::Ward(Ward::new(WardVariant::Ward, 0.2, 0.2, Texture::constant(0.3), Texture::constant(0.6)))),
+        (
+            "ward-duer",
+            Bsdf::Ward(Ward::new(WardVariant::WardDuer, 0.25, 0.15, Texture::constant(0.5), Texture::constant(0.4))),
+        ),
+        (
             "coating",
             Bsdf::Coating(Coating::new(1.3, Rgb::WHITE, Rgb::BLACK, Bsdf::Diffuse(Diffuse { reflectance: white() }))),
         ),

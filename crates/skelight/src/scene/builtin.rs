@@ -74,7 +74,8 @@ pub fn two_rooms_description() -> SceneDescription {
         integrator: "path".into(),
     };
     let view = Transform::look_at([0.5, 1.4, 3.6], [4.1, 1.0, 1.9], [0.0, 1.0, 0.0]).expect("valid view");
-    let camera = Camera::new(view, settings.width, settings.height, 62.0, FovAxis::X, Lens::PINHOLE, 0.0);
+    let camera =
+        Camera::new(view, settings.width, settings.height, 62.0, FovAxis::X, Lens::PINHOLE, Camera::DEFAULT_NEAR_CLIP);
     SceneDescription { meshes, materials, lights: Vec::new(), camera: Some(camera), settings, warnings: Vec::new() }
 }
 

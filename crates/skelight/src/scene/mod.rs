@@ -273,6 +273,9 @@ impl Scene {
             if let Some(p) = mesh.positions.iter().find(|p| !p.is_finite()) {
                 return Err(bad(format!("non-finite vertex position {p:?}")));
             }
+            if let Some(p) = mesh.positions.iter().find(|p| p.abs().max_component() > MAX_COORDINATE) {
+                return Err(bad(format!("vertex {p:?} lies beyond ±{MAX_COORDINATE:e}, too far to render")));
+            }
             for (ti, idx) in mesh.indices.iter().enumerate() {
                 if idx.iter().any(|&k| k as usize >= mesh.positions.len()) {
                     return Err(bad(format!(
@@ -474,22 +477,41 @@ impl Scene {
     }
 }
 
+/// Largest coordinate a vertex may have: beyond it, areas and the BVH's costs (extent² ×
+/// triangle count) overflow f32, and so does the distance of the default view.
+pub const MAX_COORDINATE: f32 = 1e12;
+
 /// A camera that frames all meshes from the front (+z towards −z), for files without one.
+/// Geometry that is not finite or lies beyond [`MAX_COORDINATE`] is left out of the framing
+/// (`Scene::build` refuses it).
 pub fn default_camera(desc: &SceneDescription) -> Camera {
     let mut b = Aabb::EMPTY;
-    desc.meshes.iter().flat_map(|m| m.positions.iter()).for_each(|p| b.grow(*p));
+    desc.meshes
+        .iter()
+        .flat_map(|m| m.positions.iter())
+        .filter(|p| p.is_finite() && p.abs().max_component() <= MAX_COORDINATE)
+        .for_each(|p| b.grow(*p));
     if b.is_empty() {
         b = Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) };
     }
     let c = b.center();
     let r = b.bounding_radius().max(1e-3);
     let fov: f32 = 45.0;
-    let dist = r / (fov.to_radians() * 0.5).sin();
-    let origin = [c.x as f64, c.y as f64, (c.z + dist) as f64];
-    let t = crate::math::Transform::look_at(origin, [c.x as f64, c.y as f64, c.z as f64], [0.0, 1.0, 0.0])
-        .expect("valid default view");
+    // Never so close to a far-off centre that the two are one point in f32.
+    let dist = (r / (fov.to_radians() * 0.5).sin()).max(c.abs().max_component() * 1e-5);
+    let target = [c.x as f64, c.y as f64, c.z as f64];
+    let origin = [target[0], target[1], target[2] + dist as f64];
+    let t = crate::math::Transform::look_at(origin, target, [0.0, 1.0, 0.0]).expect("a view along −z is valid");
     let s = &desc.settings;
-    Camera::new(t, s.width, s.height, fov, crate::camera::FovAxis::X, crate::camera::Lens::PINHOLE, 0.0)
+    Camera::new(
+        t,
+        s.width,
+        s.height,
+        fov,
+        crate::camera::FovAxis::X,
+        crate::camera::Lens::PINHOLE,
+        Camera::DEFAULT_NEAR_CLIP,
+    )
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use super::{confined_path, LoadError};
+use crate::boundary::catch_panic;
 use crate::camera::{Camera, FovAxis, Lens};
 use crate::color::Rgb;
 use crate::film::Filter;
@@ -98,8 +99,82 @@ fn material_of(m: &gltf::Material, images: &[gltf::image::Data], warnings: &mut 
     Material::new(name, bsdf)
 }
 
+/// Refuses a binary glTF whose header claims more bytes than the file has, or fewer than
+/// the header itself: the `gltf` crate allocates the claimed length less 12 before reading.
+fn check_glb_length(path: &Path) -> Result<(), String> {
+    use std::io::Read;
+    let mut head = [0u8; 12];
+    let mut file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    let file_len = file.metadata().map_err(|e| e.to_string())?.len();
+    if file.read_exact(&mut head).is_err() || &head[..4] != b"glTF" {
+        return Ok(());
+    }
+    let claimed = u32::from_le_bytes([head[8], head[9], head[10], head[11]]) as u64;
+    if !(12..=file_len).contains(&claimed) {
+        return Err(format!("its GLB header claims {claimed} bytes, but the file has {file_len}"));
+    }
+    Ok(())
+}
+
+/// Refuses accessor types the `gltf` crate's readers do not handle (they would panic).
+fn check_accessors(prim: &gltf::Primitive) -> Result<(), String> {
+    use gltf::accessor::{DataType, Dimensions};
+    use gltf::mesh::Semantic;
+    let want = |semantic: &str, a: gltf::Accessor, types: &[DataType], dims: Dimensions| {
+        if types.contains(&a.data_type()) && a.dimensions() == dims {
+            Ok(())
+        } else {
+            Err(format!(
+                "{semantic} accessor {} holds {:?} {:?}, expected {types:?} {dims:?}",
+                a.index(),
+                a.data_type(),
+                a.dimensions()
+            ))
+        }
+    };
+    if let Some(a) = prim.indices() {
+        want("index", a, &[DataType::U8, DataType::U16, DataType::U32], Dimensions::Scalar)?;
+    }
+    for (semantic, a) in prim.attributes() {
+        match semantic {
+            Semantic::Positions => want("position", a, &[DataType::F32], Dimensions::Vec3)?,
+            Semantic::Normals => want("normal", a, &[DataType::F32], Dimensions::Vec3)?,
+            Semantic::TexCoords(0) => want("uv", a, &[DataType::U8, DataType::U16, DataType::F32], Dimensions::Vec2)?,
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// A primitive's triangle data and indices (all vertices in order when it has none);
+/// `None` without positions.
+fn read_primitive(prim: &gltf::Primitive, buffers: &[gltf::buffer::Data]) -> Option<(TriangleData, Vec<u32>)> {
+    let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+    let positions: Vec<Vec3> = reader.read_positions()?.map(|p| vec3(p[0], p[1], p[2])).collect();
+    let mut data = TriangleData { positions, ..Default::default() };
+    if let Some(n) = reader.read_normals() {
+        data.normals = n.map(|n| vec3(n[0], n[1], n[2])).collect();
+    }
+    if let Some(t) = reader.read_tex_coords(0) {
+        data.uvs = t.into_f32().map(|t| vec2(t[0], t[1])).collect();
+    }
+    let indices = match reader.read_indices() {
+        Some(i) => i.into_u32().collect(),
+        None => (0..data.positions.len() as u32).collect(),
+    };
+    Some((data, indices))
+}
+
+/// Reads a .gltf or .glb file. The `gltf` crate's accessors unwrap what its validation lets
+/// through (an image with neither a URI nor a buffer view, say), so the whole reading runs
+/// behind a panic boundary.
 pub fn load_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
+    catch_panic("glTF data", || read_gltf(path)).unwrap_or_else(|e| Err(LoadError::at(path, 0, e)))
+}
+
+fn read_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
     let err = |msg: String| LoadError::at(path, 0, msg);
+    check_glb_length(path).map_err(&err)?;
     // Refuse external files outside the scene folder before anything is read.
     let doc = gltf::Gltf::open(path).map_err(|e| err(format!("cannot parse glTF: {e}")))?;
     let dir = path.parent().unwrap_or(Path::new("."));
@@ -139,7 +214,15 @@ pub fn load_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
         .or_else(|| document.scenes().next())
         .ok_or_else(|| err("no scene in the file".into()))?;
     let mut stack: Vec<(gltf::Node, Transform)> = scene.nodes().map(|n| (n, Transform::IDENTITY)).collect();
+    // glTF's node hierarchy is a forest: a node reached twice is a cycle or has two parents.
+    let mut reached = vec![false; document.nodes().len()];
     while let Some((node, parent)) = stack.pop() {
+        if std::mem::replace(&mut reached[node.index()], true) {
+            return Err(err(format!(
+                "node {} is reached twice in the node hierarchy (a cycle, or a node with two parents)",
+                node.index()
+            )));
+        }
         let local = to_transform(node.transform().matrix())
             .ok_or_else(|| err(format!("node {} has a singular transform", node.index())))?;
         let world = parent.compose(&local);
@@ -156,24 +239,10 @@ pub fn load_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
                     ));
                     continue;
                 }
-                let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-                let positions: Vec<Vec3> = reader
-                    .read_positions()
-                    .ok_or_else(|| err(format!("mesh {} has no positions", mesh.index())))?
-                    .map(|p| vec3(p[0], p[1], p[2]))
-                    .collect();
-                let mut data = TriangleData { positions, ..Default::default() };
-                if let Some(n) = reader.read_normals() {
-                    data.normals = n.map(|n| vec3(n[0], n[1], n[2])).collect();
-                }
-                if let Some(t) = reader.read_tex_coords(0) {
-                    data.uvs = t.into_f32().map(|t| vec2(t[0], t[1])).collect();
-                }
+                check_accessors(&prim).map_err(|e| err(format!("mesh {}: {e}", mesh.index())))?;
+                let (mut data, indices) = read_primitive(&prim, &buffers)
+                    .ok_or_else(|| err(format!("mesh {} has no positions", mesh.index())))?;
                 let nv = data.positions.len() as u32;
-                let indices: Vec<u32> = match reader.read_indices() {
-                    Some(i) => i.into_u32().collect(),
-                    None => (0..nv).collect(),
-                };
                 if let Some(bad) = indices.iter().find(|&&i| i >= nv) {
                     return Err(err(format!("mesh {}: index {bad} beyond its {nv} vertices", mesh.index())));
                 }

@@ -3,26 +3,30 @@
 //! chains, shapes, BSDFs, textures, emitters, sensor, film and integrator settings.
 //! Unsupported plugins produce a warning and a visible fallback (magenta), never silence.
 
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use roxmltree::{Document, Node};
 
+mod bsdf;
+mod depth;
+mod emitter;
+mod sensor;
+
 use super::{confined_path, LoadError};
-use crate::camera::{Camera, FovAxis, Lens};
+use crate::camera::FovAxis;
 use crate::color::{rgb, srgb_to_linear, Rgb};
-use crate::film::Filter;
 use crate::geometry::Sphere;
 use crate::imageio::Image;
-use crate::light::{DateTime, EnvMap, Light, SunPosition, SunSky, SunSkyParams, SUN_APERTURE_DEG};
-use crate::material::fresnel::{named_conductor, named_ior};
-use crate::material::microfacet::{Microfacet, MicrofacetType};
+use crate::material::fresnel::named_ior;
 use crate::material::*;
 use crate::math::{vec3, Frame, Transform, Vec3};
 use crate::scene::shapes::{self, TriangleData};
-use crate::scene::{Mesh, RenderSettings, SceneDescription};
+use crate::scene::{Mesh, SceneDescription};
 use crate::texture::{Bitmap, TexFilter, Texture, UvTransform};
+use depth::MAX_XML_DEPTH;
 
 /// `fooBar` and `foo_bar` name the same parameter; so do `intIOR` and `int_ior`.
 pub fn normalize_name(s: &str) -> String {
@@ -44,6 +48,7 @@ struct MaterialRef {
     alpha: Option<Texture>,
 }
 
+#[derive(Clone)]
 struct Parsed {
     bsdf: Bsdf,
     perturbation: Option<Perturbation>,
@@ -56,8 +61,11 @@ pub struct Loader {
     defines: HashMap<String, String>,
     overrides: HashMap<String, String>,
     materials: HashMap<String, MaterialRef>,
-    textures: HashMap<String, Texture>,
-    bitmaps: std::cell::RefCell<HashMap<(PathBuf, bool, bool), Arc<Bitmap>>>,
+    /// Textures by id; filled while textures are read, nested ones included.
+    textures: RefCell<HashMap<String, Texture>>,
+    /// Warnings from texture reading, which only borrows the loader.
+    texture_warnings: RefCell<Vec<String>>,
+    bitmaps: RefCell<HashMap<(PathBuf, bool, bool), Arc<Bitmap>>>,
     /// Shared default materials: [non-emitters, emitters].
     default_materials: [Option<u32>; 2],
     desc: SceneDescription,
@@ -65,7 +73,14 @@ pub struct Loader {
     file: PathBuf,
     fov: (f32, FovAxis),
     version_major: u32,
+    /// The file being read and those including it, to refuse an `<include>` cycle.
+    open_files: Vec<PathBuf>,
+    /// Files included so far: a tree of includes may not grow without bound either.
+    files_read: usize,
 }
+
+/// Most `<include>`s one scene may read, repeats included.
+const MAX_INCLUDES: usize = 1000;
 
 type R<T> = Result<T, LoadError>;
 
@@ -76,18 +91,23 @@ impl Loader {
             defines: HashMap::new(),
             overrides: overrides.iter().cloned().collect(),
             materials: HashMap::new(),
-            textures: HashMap::new(),
+            textures: Default::default(),
+            texture_warnings: Default::default(),
             bitmaps: Default::default(),
             default_materials: [None; 2],
             desc: SceneDescription::default(),
             file: PathBuf::new(),
             fov: (45.0, FovAxis::X),
             version_major: 3,
+            open_files: Vec::new(),
+            files_read: 0,
         }
     }
 
     pub fn load(mut self, path: &Path) -> R<SceneDescription> {
         self.load_file(path, true)?;
+        let texture_warnings = self.texture_warnings.take();
+        self.desc.warnings.extend(texture_warnings);
         if self.desc.camera.is_none() {
             self.warn(format!("{}: no sensor; using a default camera looking at the scene", path.display()));
         }
@@ -112,6 +132,9 @@ impl Loader {
 
     fn load_file(&mut self, path: &Path, top: bool) -> R<()> {
         let text = super::read_text(path)?;
+        if let Some(line) = depth::too_deep_at(&text, MAX_XML_DEPTH) {
+            return Err(LoadError::at(path, line, format!("elements are nested more than {MAX_XML_DEPTH} deep")));
+        }
         let doc = Document::parse(&text).map_err(|e| {
             let p = e.pos();
             LoadError::at(path, p.row as usize, format!("malformed XML: {e}"))
@@ -134,9 +157,11 @@ impl Loader {
             let value = n.attribute("value").ok_or_else(|| self.err(n, "<default> needs a value"))?;
             self.defines.entry(name.to_string()).or_insert_with(|| value.to_string());
         }
+        self.open_files.push(path.canonicalize().unwrap_or_else(|_| path.to_path_buf()));
         for n in root.children().filter(|n| n.is_element()) {
             self.scene_child(n)?;
         }
+        self.open_files.pop();
         self.file = saved;
         Ok(())
     }
@@ -147,22 +172,33 @@ impl Loader {
             "include" => {
                 let f = self.attr(n, "filename")?.ok_or_else(|| self.err(n, "<include> needs a filename"))?;
                 let p = self.resolve(n, &f)?;
+                if self.open_files.contains(&p.canonicalize().unwrap_or_else(|_| p.clone())) {
+                    return Err(self.err(n, format!("'{f}' includes itself (an <include> cycle)")));
+                }
+                self.files_read += 1;
+                if self.files_read > MAX_INCLUDES {
+                    return Err(self.err(n, format!("more than {MAX_INCLUDES} <include>s in one scene")));
+                }
                 self.load_file(&p, false)
             }
             "integrator" => self.integrator(n),
             "sensor" | "camera" => self.sensor(n),
             "shape" => self.shape(n),
-            "bsdf" => {
-                let id = self.attr(n, "id")?.ok_or_else(|| self.err(n, "a top-level <bsdf> needs an id"))?;
-                let m = self.material(n)?;
-                self.materials.insert(id, m);
-                Ok(())
-            }
-            "texture" => {
-                let id = self.attr(n, "id")?.ok_or_else(|| self.err(n, "a top-level <texture> needs an id"))?;
-                let t = self.texture_node(n)?;
-                self.textures.insert(id, t);
-                Ok(())
+            // Mitsuba 0.x loads unnamed top-level objects: nothing can refer to them, but
+            // the ids of the objects nested in them are registered.
+            "bsdf" | "texture" => {
+                if n.attribute("id").is_none() {
+                    let kind = n.tag_name().name();
+                    self.warn_at(
+                        n,
+                        format!("this top-level <{kind}> has no id, so only what is nested in it can be referenced"),
+                    );
+                }
+                if n.tag_name().name() == "bsdf" {
+                    self.material(n).map(|_| ())
+                } else {
+                    self.texture_node(n).map(|_| ())
+                }
             }
             "emitter" => self.emitter(n),
             other => {
@@ -420,7 +456,11 @@ impl Loader {
             "texture" => self.texture_node(p),
             "ref" => {
                 let id = self.attr(p, "id")?.ok_or_else(|| self.err(p, "<ref> needs an id"))?;
-                self.textures.get(&id).cloned().ok_or_else(|| self.err(p, format!("no texture with id '{id}'")))
+                self.textures
+                    .borrow()
+                    .get(&id)
+                    .cloned()
+                    .ok_or_else(|| self.err(p, format!("no texture with id '{id}'")))
             }
             _ => Ok(Texture::Constant(self.color_of(p)?)),
         }
@@ -443,7 +483,16 @@ impl Loader {
         ))
     }
 
+    /// A `<texture>` element; one with an `id` can then be referenced.
     fn texture_node(&self, t: Node) -> R<Texture> {
+        let tex = self.texture_of_type(t)?;
+        if let Some(id) = self.attr(t, "id")? {
+            self.textures.borrow_mut().insert(id, tex.clone());
+        }
+        Ok(tex)
+    }
+
+    fn texture_of_type(&self, t: Node) -> R<Texture> {
         let ty = self.attr(t, "type")?.unwrap_or_default();
         match ty.as_str() {
             "bitmap" => {
@@ -468,6 +517,7 @@ impl Loader {
                     Some(c) => {
                         let id = self.attr(c, "id")?.unwrap_or_default();
                         self.textures
+                            .borrow()
                             .get(&id)
                             .cloned()
                             .ok_or_else(|| self.err(c, format!("no texture with id '{id}'")))?
@@ -476,7 +526,15 @@ impl Loader {
                 };
                 Ok(Texture::Scale { scale: self.float(t, "scale", 1.0)?, inner: Box::new(inner) })
             }
-            other => Err(self.err(t, format!("texture type '{other}' is not supported"))),
+            other => {
+                let pos = t.document().text_pos_at(t.range().start);
+                self.texture_warnings.borrow_mut().push(format!(
+                    "{}:{}: texture type '{other}' is not supported; rendered as magenta",
+                    self.file.display(),
+                    pos.row
+                ));
+                Ok(Texture::Constant(FALLBACK_MAGENTA))
+            }
         }
     }
 
@@ -491,206 +549,6 @@ impl Loader {
         let b = Arc::new(Bitmap::new(img, !raw && !is_hdr, filter));
         self.bitmaps.borrow_mut().insert(key, b.clone());
         Ok(b)
-    }
-
-    // ----- materials --------------------------------------------------------------------
-
-    fn material(&mut self, n: Node) -> R<MaterialRef> {
-        let p = self.bsdf(n)?;
-        let id = self.attr(n, "id")?.unwrap_or_else(|| format!("anonymous{}", self.desc.materials.len()));
-        let index = self.desc.materials.len() as u32;
-        self.desc.materials.push(Material { name: id, bsdf: p.bsdf, perturbation: p.perturbation });
-        Ok(MaterialRef { index, alpha: p.alpha })
-    }
-
-    fn nested_bsdfs<'a, 'i>(&self, n: Node<'a, 'i>) -> Vec<Node<'a, 'i>> {
-        n.children()
-            .filter(|c| {
-                c.is_element()
-                    && (c.tag_name().name() == "bsdf"
-                        || (c.tag_name().name() == "ref" && c.attribute("name").is_none_or(|nm| nm.contains("bsdf"))))
-            })
-            .collect()
-    }
-
-    fn nested(&mut self, n: Node, k: usize) -> R<Parsed> {
-        let kids = self.nested_bsdfs(n);
-        let c = *kids.get(k).ok_or_else(|| self.err(n, "expected a nested <bsdf>"))?;
-        if c.tag_name().name() == "ref" {
-            let id = self.attr(c, "id")?.unwrap_or_default();
-            let m = self.materials.get(&id).cloned().ok_or_else(|| self.err(c, format!("no bsdf with id '{id}'")))?;
-            let mat = &self.desc.materials[m.index as usize];
-            return Ok(Parsed { bsdf: mat.bsdf.clone(), perturbation: mat.perturbation.clone(), alpha: m.alpha });
-        }
-        self.bsdf(c)
-    }
-
-    fn distribution(&self, n: Node) -> R<Microfacet> {
-        let kind = match self.string(n, "distribution")?.as_deref().unwrap_or("beckmann") {
-            "beckmann" | "phong" => MicrofacetType::Beckmann,
-            "ggx" => MicrofacetType::Ggx,
-            other => return Err(self.err(n, format!("unknown microfacet distribution '{other}'"))),
-        };
-        let scalar = |name: &str, d: f32| -> R<f32> {
-            match self.prop(n, name) {
-                Some(p) if p.tag_name().name() == "texture" || p.tag_name().name() == "ref" => {
-                    Ok(self.texture(n, name, Rgb::splat(d))?.mean().mean())
-                }
-                _ => self.float(n, name, d),
-            }
-        };
-        let alpha = scalar("alpha", 0.1)?;
-        Ok(Microfacet::new(kind, scalar("alpha_u", alpha)?, scalar("alpha_v", alpha)?))
-    }
-
-    fn eta(&self, n: Node, int_default: f32) -> R<f32> {
-        let int = self.float(n, "int_ior", int_default)?;
-        let ext = self.float(n, "ext_ior", 1.000277)?;
-        if !(int > 0.0 && ext > 0.0) {
-            return Err(self.err(n, "indices of refraction must be positive"));
-        }
-        Ok(int / ext)
-    }
-
-    fn conductor_ior(&self, n: Node) -> R<(Rgb, Rgb)> {
-        let name = self.string(n, "material")?.unwrap_or_else(|| "none".into());
-        let (eta, k) = named_conductor(&name).ok_or_else(|| self.err(n, format!("unknown conductor '{name}'")))?;
-        let ext = self.float(n, "ext_eta", 1.0)?;
-        let eta = self.color(n, "eta", eta)?;
-        let k = self.color(n, "k", k)?;
-        Ok((eta / ext, k / ext))
-    }
-
-    fn bsdf(&mut self, n: Node) -> R<Parsed> {
-        let ty = self.attr(n, "type")?.unwrap_or_default();
-        let plain = |bsdf: Bsdf| Ok(Parsed { bsdf, perturbation: None, alpha: None });
-        match ty.as_str() {
-            "diffuse" | "lambertian" => {
-                plain(Bsdf::Diffuse(Diffuse { reflectance: self.texture(n, "reflectance", Rgb::splat(0.5))? }))
-            }
-            "roughdiffuse" => plain(Bsdf::RoughDiffuse(RoughDiffuse {
-                reflectance: self.texture(n, "reflectance", Rgb::splat(0.5))?,
-                alpha: self.float(n, "alpha", 0.2)?,
-            })),
-            "conductor" => {
-                let (eta, k) = self.conductor_ior(n)?;
-                plain(Bsdf::Conductor(Conductor {
-                    eta,
-                    k,
-                    specular_reflectance: self.texture(n, "specular_reflectance", Rgb::WHITE)?,
-                }))
-            }
-            "roughconductor" => {
-                let (eta, k) = self.conductor_ior(n)?;
-                plain(Bsdf::RoughConductor(RoughConductor {
-                    distribution: self.distribution(n)?,
-                    eta,
-                    k,
-                    specular_reflectance: self.texture(n, "specular_reflectance", Rgb::WHITE)?,
-                }))
-            }
-            "dielectric" => plain(Bsdf::Dielectric(Dielectric {
-                eta: self.eta(n, 1.5046)?,
-                specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?,
-                specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)?,
-            })),
-            "thindielectric" => plain(Bsdf::ThinDielectric(ThinDielectric {
-                eta: self.eta(n, 1.5046)?,
-                specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?,
-                specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)?,
-            })),
-            "roughdielectric" => plain(Bsdf::RoughDielectric(RoughDielectric {
-                distribution: self.distribution(n)?,
-                eta: self.eta(n, 1.5046)?,
-                specular_reflectance: self.color(n, "specular_reflectance", Rgb::WHITE)?,
-                specular_transmittance: self.color(n, "specular_transmittance", Rgb::WHITE)?,
-            })),
-            "plastic" => plain(Bsdf::Plastic(Plastic::new(
-                self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?,
-                self.texture(n, "specular_reflectance", Rgb::WHITE)?,
-                self.eta(n, 1.49)?,
-                self.boolean(n, "nonlinear", false)?,
-            ))),
-            "roughplastic" => plain(Bsdf::RoughPlastic(RoughPlastic::new(
-                self.distribution(n)?,
-                self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?,
-                self.texture(n, "specular_reflectance", Rgb::WHITE)?,
-                self.eta(n, 1.49)?,
-                self.boolean(n, "nonlinear", false)?,
-            ))),
-            "phong" => plain(Bsdf::Phong(Phong::new(
-                self.texture(n, "diffuse_reflectance", Rgb::splat(0.5))?,
-                self.texture(n, "specular_reflectance", Rgb::splat(0.2))?,
-                self.float(n, "exponent", 30.0)?,
-            ))),
-            "coating" | "roughcoating" => {
-                if ty == "roughcoating" {
-                    self.warn(format!("{}: roughcoating is rendered as a smooth coating", self.file.display()));
-                }
-                let inner = self.nested(n, 0)?;
-                let sigma = self.color(n, "sigma_a", Rgb::BLACK)? * self.float(n, "thickness", 1.0)?;
-                Ok(Parsed {
-                    bsdf: Bsdf::Coating(Coating::new(
-                        self.eta(n, 1.5046)?,
-                        self.color(n, "specular_reflectance", Rgb::WHITE)?,
-                        sigma,
-                        inner.bsdf,
-                    )),
-                    ..inner
-                })
-            }
-            "twosided" => {
-                let front = self.nested(n, 0)?;
-                let back = if self.nested_bsdfs(n).len() > 1 { self.nested(n, 1)?.bsdf } else { front.bsdf.clone() };
-                Ok(Parsed { bsdf: Bsdf::TwoSided(Box::new(front.bsdf), Box::new(back)), ..front })
-            }
-            "mask" => {
-                let opacity = self.texture(n, "opacity", Rgb::splat(0.5))?;
-                let inner = self.nested(n, 0)?;
-                Ok(Parsed { alpha: Some(opacity), ..inner })
-            }
-            "bump" | "bumpmap" => {
-                let tex = n
-                    .children()
-                    .find(|c| c.is_element() && c.tag_name().name() == "texture")
-                    .ok_or_else(|| self.err(n, "bump needs a <texture>"))?;
-                let height = self.texture_node(tex)?;
-                let scale = self.float(n, "scale", 1.0)?;
-                let inner = self.nested(n, 0)?;
-                Ok(Parsed { perturbation: Some(Perturbation::Bump { height, scale }), ..inner })
-            }
-            "normalmap" => {
-                let normals = match self.prop(n, "normalmap") {
-                    Some(_) => self.texture(n, "normalmap", Rgb::splat(0.5))?,
-                    None => {
-                        let tex = n
-                            .children()
-                            .find(|c| c.is_element() && c.tag_name().name() == "texture")
-                            .ok_or_else(|| self.err(n, "normalmap needs a <texture>"))?;
-                        self.texture_node(tex)?
-                    }
-                };
-                let inner = self.nested(n, 0)?;
-                Ok(Parsed { perturbation: Some(Perturbation::NormalMap { normals }), ..inner })
-            }
-            "null" => Ok(Parsed { bsdf: Bsdf::Black, perturbation: None, alpha: Some(Texture::constant(0.0)) }),
-            other => {
-                self.warn_at(n, format!("BSDF type '{other}' is not supported; rendered as magenta diffuse"));
-                plain(Material::fallback(other).bsdf)
-            }
-        }
-    }
-
-    fn default_material(&mut self, emitter: bool) -> u32 {
-        let slot = emitter as usize;
-        if let Some(i) = self.default_materials[slot] {
-            return i;
-        }
-        let i = self.desc.materials.len() as u32;
-        let (name, value) = if emitter { ("default-emitter", 0.0) } else { ("default", 0.5) };
-        self.desc.materials.push(Material::new(name, Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(value) })));
-        self.default_materials[slot] = Some(i);
-        i
     }
 
     // ----- shapes -----------------------------------------------------------------------
@@ -792,6 +650,10 @@ impl Loader {
                         .ok_or_else(|| self.err(c, format!("no bsdf with id '{id}'")))?;
                     mref = Some(m);
                 }
+                "medium" | "subsurface" => {
+                    let what = c.tag_name().name();
+                    self.warn_at(c, format!("<{what}> is not supported; the shape is rendered without it"));
+                }
                 _ => {}
             }
         }
@@ -815,233 +677,6 @@ impl Loader {
         mesh.emission = emission;
         mesh.sphere = sphere;
         self.desc.meshes.push(mesh);
-        Ok(())
-    }
-
-    // ----- emitters, sensor, integrator -------------------------------------------------
-
-    fn emitter(&mut self, n: Node) -> R<()> {
-        let ty = self.attr(n, "type")?.unwrap_or_default();
-        let to_world = self.transform(n, "to_world")?;
-        let light = match ty.as_str() {
-            "point" => {
-                let pos = self.point(n, "position", to_world.point(Vec3::ZERO))?;
-                Light::Point { position: pos, intensity: self.color(n, "intensity", Rgb::WHITE)? }
-            }
-            "spot" => {
-                let cutoff = self.float(n, "cutoff_angle", 20.0)?.to_radians();
-                let beam = self.float(n, "beam_width", cutoff.to_degrees() * 0.75)?.to_radians().min(cutoff);
-                let forward = to_world.vector(vec3(0.0, 0.0, 1.0)).normalize();
-                Light::Spot {
-                    position: to_world.point(Vec3::ZERO),
-                    frame: Frame::from_normal(forward),
-                    intensity: self.color(n, "intensity", Rgb::WHITE)?,
-                    cos_cutoff: cutoff.cos(),
-                    cutoff,
-                    beam_width: beam,
-                }
-            }
-            "directional" => {
-                let d = match self.prop(n, "direction") {
-                    Some(p) => self.vector3(p)?,
-                    None => to_world.vector(vec3(0.0, 0.0, 1.0)),
-                };
-                if !(d.length() > 0.0) {
-                    return Err(self.err(n, "directional light needs a non-zero direction"));
-                }
-                Light::Directional { direction: d.normalize(), irradiance: self.color(n, "irradiance", Rgb::WHITE)? }
-            }
-            "constant" => Light::Constant { radiance: self.color(n, "radiance", Rgb::WHITE)? },
-            "envmap" => {
-                let f = self.string(n, "filename")?.ok_or_else(|| self.err(n, "envmap needs a filename"))?;
-                let path = self.resolve(n, &f)?;
-                let img = Image::load(&path).map_err(|e| self.err(n, e.to_string()))?;
-                let scale = self.float(n, "scale", 1.0)?;
-                Light::Env(Box::new(EnvMap::new(img, scale, to_world)))
-            }
-            "sunsky" | "sun" | "sky" => Light::Env(Box::new(self.sunsky(n, &ty, to_world)?)),
-            "area" => return Err(self.err(n, "an area emitter must be inside a <shape>")),
-            other => {
-                self.warn_at(n, format!("emitter type '{other}' is not supported; ignored"));
-                return Ok(());
-            }
-        };
-        self.desc.lights.push(light);
-        Ok(())
-    }
-
-    /// Mitsuba 3's `sunsky`, and Mitsuba 0.x's `sunsky`, `sun` and `sky` read with their 0.x
-    /// names (`sunRadiusScale`, `scale`) and defaults (albedo 0.15) in a Y-up frame, all
-    /// rendered with Mitsuba 3's model.
-    fn sunsky(&mut self, n: Node, ty: &str, to_world: Transform) -> R<SunSky> {
-        let legacy = self.version_major == 0;
-        let time_names = ["latitude", "longitude", "timezone", "year", "month", "day", "hour", "minute", "second"];
-        let sun = match self.prop(n, "sun_direction") {
-            Some(p) => {
-                if let Some(t) = time_names.iter().find(|t| self.prop(n, t).is_some()) {
-                    return Err(
-                        self.err(n, format!("'{ty}' takes either sun_direction or a place and time ('{t}'), not both"))
-                    );
-                }
-                SunPosition::Direction(self.vector3(p)?)
-            }
-            None => {
-                let d = DateTime::default();
-                let whole = |s: &Self, name: &str, default: i32| -> R<i32> {
-                    let v = s.int(n, name, default as i64)?;
-                    i32::try_from(v).map_err(|_| s.err(n, format!("'{name}' = {v} is out of range")))
-                };
-                SunPosition::DateTime(DateTime {
-                    latitude: self.float(n, "latitude", d.latitude as f32)? as f64,
-                    longitude: self.float(n, "longitude", d.longitude as f32)? as f64,
-                    timezone: self.float(n, "timezone", d.timezone as f32)? as f64,
-                    year: whole(self, "year", d.year)?,
-                    month: whole(self, "month", d.month)?,
-                    day: whole(self, "day", d.day)?,
-                    hour: self.float(n, "hour", d.hour as f32)? as f64,
-                    minute: self.float(n, "minute", d.minute as f32)? as f64,
-                    second: self.float(n, "second", d.second as f32)? as f64,
-                })
-            }
-        };
-        // 0.x's `sun` and `sky` are the two halves, each with its own `scale`.
-        let scale = self.float(n, "scale", 1.0)?;
-        let sun_scale =
-            if ty == "sky" { 0.0 } else { self.float(n, "sun_scale", if ty == "sun" { scale } else { 1.0 })? };
-        let sky_scale =
-            if ty == "sun" { 0.0 } else { self.float(n, "sky_scale", if ty == "sky" { scale } else { 1.0 })? };
-        let sun_aperture_deg = match self.prop(n, "sun_radius_scale") {
-            Some(_) => SUN_APERTURE_DEG * self.float(n, "sun_radius_scale", 1.0)?,
-            None => self.float(n, "sun_aperture", SUN_APERTURE_DEG)?,
-        };
-        let to_world = if legacy {
-            // 0.x skies are Y-up: turn the emitter's Z-up frame onto +Y.
-            to_world.compose(&Transform::rotate([1.0, 0.0, 0.0], -90.0).expect("a rotation about x"))
-        } else {
-            to_world
-        };
-        let params = SunSkyParams {
-            turbidity: self.float(n, "turbidity", 3.0)?,
-            albedo: self.color(n, "albedo", Rgb::splat(if legacy { 0.15 } else { 0.3 }))?,
-            sun,
-            sun_scale,
-            sky_scale,
-            sun_aperture_deg,
-            complex_sun: self.boolean(n, "complex_sun", false)?,
-            to_world,
-        };
-        let sky = SunSky::new(&params).map_err(|e| self.err(n, format!("{ty}: {e}")))?;
-        if sky.sun_below_horizon() {
-            self.warn_at(n, format!("{ty}: the sun is below the horizon, so sun and sky are dark (as in Mitsuba 3)"));
-        }
-        Ok(sky)
-    }
-
-    fn sensor(&mut self, n: Node) -> R<()> {
-        let ty = self.attr(n, "type")?.unwrap_or_default();
-        if ty != "perspective" && ty != "thinlens" {
-            self.warn_at(n, format!("sensor '{ty}' is not supported; using a perspective camera"));
-        }
-        let to_world = self.transform(n, "to_world")?;
-        let mut settings = RenderSettings {
-            integrator: self.desc.settings.integrator.clone(),
-            max_depth: self.desc.settings.max_depth,
-            rr_depth: self.desc.settings.rr_depth,
-            ..RenderSettings::default()
-        };
-        let film = n.children().find(|c| c.is_element() && c.tag_name().name() == "film");
-        if let Some(f) = film {
-            let w = self.int(f, "width", 768)?;
-            let h = self.int(f, "height", 576)?;
-            crate::scene::check_resolution(w, h).map_err(|m| self.err(f, m))?;
-            settings.width = w as usize;
-            settings.height = h as usize;
-            if let Some(rf) = f.children().find(|c| c.is_element() && c.tag_name().name() == "rfilter") {
-                settings.filter = match self.attr(rf, "type")?.as_deref().unwrap_or("gaussian") {
-                    "box" => Filter::Box,
-                    "tent" => Filter::Tent { radius: self.float(rf, "radius", 1.0)? },
-                    "gaussian" => Filter::Gaussian { stddev: self.float(rf, "stddev", 0.5)? },
-                    other => {
-                        self.warn(format!(
-                            "{}: reconstruction filter '{other}' is not supported; using gaussian",
-                            self.file.display()
-                        ));
-                        Filter::Gaussian { stddev: 0.5 }
-                    }
-                };
-            }
-        }
-        if let Some(s) = n.children().find(|c| c.is_element() && c.tag_name().name() == "sampler") {
-            let spp = self.int(s, "sample_count", 4)?;
-            if !(1..=1 << 24).contains(&spp) {
-                return Err(self.err(s, format!("sample_count {spp} is out of range (1 to 2^24)")));
-            }
-            settings.spp = spp as u32;
-        }
-        let fov = match self.prop(n, "fov") {
-            Some(_) => self.float(n, "fov", 45.0)?,
-            None => match self.string(n, "focal_length")? {
-                Some(fl) => {
-                    let mm: f32 = fl
-                        .trim_end_matches("mm")
-                        .trim()
-                        .parse()
-                        .map_err(|_| self.err(n, format!("bad focal length '{fl}'")))?;
-                    2.0 * (36.0 / (2.0 * mm)).atan().to_degrees()
-                }
-                None => 45.0,
-            },
-        };
-        if !(fov > 0.0 && fov < 180.0) {
-            return Err(self.err(n, format!("field of view {fov}° must lie in (0, 180)")));
-        }
-        let axis = match self.string(n, "fov_axis")?.as_deref().unwrap_or("x") {
-            "x" => FovAxis::X,
-            "y" => FovAxis::Y,
-            "diagonal" => FovAxis::Diagonal,
-            "smaller" => FovAxis::Smaller,
-            "larger" => FovAxis::Larger,
-            other => return Err(self.err(n, format!("unknown fov_axis '{other}'"))),
-        };
-        self.fov = (fov, axis);
-        let aperture = if ty == "thinlens" { self.float(n, "aperture_radius", 0.03)? } else { 0.0 };
-        let focus = self.float(n, "focus_distance", 0.0)?;
-        if aperture > 0.0 && !(focus > 0.0) {
-            return Err(self.err(n, "thinlens needs a positive focus_distance"));
-        }
-        let near = self.float(n, "near_clip", Camera::DEFAULT_NEAR_CLIP)?.max(0.0);
-        self.desc.camera = Some(Camera::new(
-            to_world,
-            settings.width,
-            settings.height,
-            fov,
-            axis,
-            Lens { aperture_radius: aperture, focus_distance: focus },
-            near,
-        ));
-        self.desc.settings = settings;
-        Ok(())
-    }
-
-    fn integrator(&mut self, n: Node) -> R<()> {
-        let ty = self.attr(n, "type")?.unwrap_or_default();
-        // Wrappers (adaptive, irrcache…) nest the integrator that sets the depth.
-        let mut node = n;
-        while self.prop(node, "max_depth").is_none() {
-            match node.children().find(|c| c.is_element() && c.tag_name().name() == "integrator") {
-                Some(c) => node = c,
-                None => break,
-            }
-        }
-        let s = &mut self.desc.settings;
-        s.integrator = ty;
-        let (md, rr) = (self.int(node, "max_depth", -1)?, self.int(node, "rr_depth", 5)?);
-        if md < -1 || rr < 0 {
-            return Err(self.err(node, "max_depth must be ≥ -1 and rr_depth ≥ 0"));
-        }
-        let s = &mut self.desc.settings;
-        s.max_depth = md.min(i32::MAX as i64) as i32;
-        s.rr_depth = rr.min(u32::MAX as i64) as u32;
         Ok(())
     }
 }
@@ -1083,72 +718,4 @@ pub fn smooth_normals(d: &TriangleData) -> Vec<Vec3> {
         }
     }
     n.iter().map(|v| if v.length_squared() > 0.0 { v.normalize() } else { vec3(0.0, 0.0, 1.0) }).collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use crate::light::Light;
-    use crate::math::{vec3, Vec3};
-
-    fn environment_of(name: &str, xml: &str) -> (Box<dyn Fn(Vec3) -> f32>, Vec<String>) {
-        let dir = std::env::temp_dir().join(format!("skelight-mitsuba-{name}-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("s.xml");
-        std::fs::write(&path, xml).unwrap();
-        let mut scene = crate::scene::load::load(&path, &[]).unwrap();
-        let _ = std::fs::remove_dir_all(&dir);
-        let Light::Env(env) = scene.lights.remove(0) else { panic!("not an environment") };
-        (Box::new(move |d: Vec3| env.eval(d.normalize()).g), scene.warnings)
-    }
-
-    /// Mitsuba 0.x skies are Y-up and take `sunDirection`, `sunRadiusScale` and, for the
-    /// separate `sun` and `sky`, a `scale`; Mitsuba 3's is Z-up.
-    #[test]
-    fn legacy_sun_and_sky_are_read_in_a_y_up_frame() {
-        let legacy = |body: &str| format!(r#"<scene version="0.5.0">{body}</scene>"#);
-        let (sunsky, _) = environment_of(
-            "legacy",
-            &legacy(
-                r#"<emitter type="sunsky"><vector name="sunDirection" x="0" y="1" z="1"/><float name="sunRadiusScale" value="10"/></emitter>"#,
-            ),
-        );
-        assert!(sunsky(vec3(0.0, 1.0, 0.0)) > 0.0 && sunsky(vec3(0.0, 0.0, 1.0)) > 0.0);
-        assert_eq!(sunsky(vec3(0.3, -1.0, 0.0)), 0.0, "below the horizon (−y) is dark");
-        // Half aperture 10 × 0.5358° / 2 = 2.68°: 2° off the centre is sun, 3° is sky.
-        let off = |deg: f32| {
-            let a = 45f32.to_radians() + deg.to_radians();
-            vec3(0.0, a.cos(), a.sin())
-        };
-        assert!(sunsky(off(2.0)) > 100.0 * sunsky(off(3.0)));
-        let (sky, _) = environment_of(
-            "sky",
-            &legacy(
-                r#"<emitter type="sky"><vector name="sunDirection" x="0" y="1" z="1"/><float name="scale" value="2"/></emitter>"#,
-            ),
-        );
-        assert!((sky(off(3.0)) - 2.0 * sunsky(off(3.0))).abs() < 1e-4 * sky(off(3.0)), "sky scale and no sun");
-        assert!(sky(off(0.0)) < 10.0 * sky(off(3.0)), "no sun in `sky`");
-        let (sun, _) = environment_of(
-            "sun",
-            &legacy(
-                r#"<emitter type="sun"><vector name="sunDirection" x="0" y="1" z="1"/><float name="sunRadiusScale" value="10"/></emitter>"#,
-            ),
-        );
-        assert_eq!(sun(off(3.0)), 0.0, "no sky in `sun`");
-        assert!(sun(off(0.0)) > 0.0);
-        let v3 = |complex: bool| {
-            environment_of(
-                "v3",
-                &format!(
-                    r#"<scene version="3.0.0"><emitter type="sunsky"><vector name="sun_direction" value="0, 1, 1"/><boolean name="complex_sun" value="{complex}"/></emitter></scene>"#
-                ),
-            )
-        };
-        let (modern, warnings) = v3(true);
-        assert_eq!(modern(vec3(0.3, 0.0, -1.0)), 0.0, "Mitsuba 3: below the horizon is −z");
-        assert!(modern(vec3(0.3, -1.0, 0.1)) > 0.0);
-        assert!(!warnings.iter().any(|w| w.contains("sun")), "{warnings:?}");
-        // Limb darkening: brighter than the uniform disk at the centre.
-        assert!(modern(vec3(0.0, 1.0, 1.0)) > 1.1 * v3(false).0(vec3(0.0, 1.0, 1.0)));
-    }
 }
