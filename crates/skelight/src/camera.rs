@@ -79,6 +79,9 @@ impl Camera {
         near_clip: f32,
     ) -> Camera {
         let Lens { aperture_radius, focus_distance } = lens;
+        // A negative or NaN near clip (a glTF znear, say) would start primary rays behind the
+        // lens, which connections to it cannot see: no clip instead.
+        let near_clip = if near_clip.is_finite() && near_clip > 0.0 { near_clip } else { 0.0 };
         let aspect = width as f32 / height as f32;
         let t = (fov_deg.to_radians() * 0.5).tan();
         let axis = match axis {
@@ -331,6 +334,18 @@ mod tests {
         let left = cam.generate_ray(vec2(0.0, 16.0), vec2(0.5, 0.5));
         let top = cam.generate_ray(vec2(32.0, 0.0), vec2(0.5, 0.5));
         assert!(left.d.x < 0.0 && top.d.y > 0.0);
+    }
+
+    /// Negative or NaN near clips (a glTF znear, say) mean no clip, never rays starting
+    /// behind the lens.
+    #[test]
+    fn absurd_near_clips_mean_none() {
+        let t = Transform::look_at([0.0, 0.0, 3.9], [0.0; 3], [0.0, 1.0, 0.0]).unwrap();
+        for near in [-1.0, f32::NAN, f32::INFINITY] {
+            let cam = Camera::new(t, 8, 8, 40.0, FovAxis::X, Lens::PINHOLE, near);
+            assert_eq!(cam.near_clip, 0.0);
+            assert!((cam.generate_ray(vec2(4.0, 4.0), vec2(0.5, 0.5)).o - cam.position).length() < 1e-6);
+        }
     }
 
     /// A ray leaving the lens towards the scene, reversed, hits the lens where it left and

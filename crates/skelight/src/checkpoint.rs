@@ -17,7 +17,9 @@ pub struct Checkpoint {
     pub film: Film,
 }
 
-const MAGIC: &[u8; 8] = b"SKLCKPT1";
+/// Version 2: splats normalised by the filter's coverage of each pixel, and scenes with
+/// Mitsuba's default near clip; a version-1 checkpoint holds a different image.
+const MAGIC: &[u8; 8] = b"SKLCKPT2";
 
 impl Checkpoint {
     /// Writes atomically: a crash leaves the previous checkpoint intact.
@@ -36,7 +38,7 @@ impl Checkpoint {
         let b = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let bad = |m: &str| format!("{}: not a usable checkpoint ({m})", path.display());
         if b.len() < 16 || &b[..8] != MAGIC {
-            return Err(bad("wrong magic"));
+            return Err(bad("not a checkpoint of this skelight version; remove it to start afresh"));
         }
         let klen = u64::from_le_bytes(b[8..16].try_into().unwrap()) as usize;
         let rest = b.get(16..).ok_or_else(|| bad("truncated"))?;

@@ -37,6 +37,11 @@ impl Filter {
     /// of a sample at coordinate `x`.
     #[inline]
     pub fn footprint(&self, x: f32) -> (i64, i64) {
+        if *self == Filter::Box {
+            // The pixel the sample lies in, [p, p + 1): a sample on an edge counts once.
+            let p = floor(x);
+            return (p, p);
+        }
         let r = self.radius();
         (-floor(-(x - r - 0.5)), floor(x + r - 0.5))
     }
@@ -67,6 +72,9 @@ impl Filter {
     /// filtered pixel value, at the border (where part of the filter falls off the film)
     /// as inside.
     pub fn film_coverage(&self, n: usize) -> Vec<f32> {
+        if *self == Filter::Box {
+            return vec![1.0; n];
+        }
         let profile = self.profile();
         let r = self.radius() as f64;
         // Simpson's rule on each side of the centre, where the profiles are smooth (box and
@@ -123,8 +131,9 @@ impl Profile {
     #[inline]
     fn eval(self, x: f32) -> f32 {
         match self {
+            // Half-open, like the box footprint: (−½, ½] around the pixel centre.
             Profile::Box => {
-                if x.abs() <= 0.5 {
+                if x > -0.5 && x <= 0.5 {
                     1.0
                 } else {
                     0.0
@@ -150,21 +159,12 @@ impl Footprint {
     pub fn weight(&self, px: i64, py: i64) -> f32 {
         self.taps.as_ref().map_or(1.0, |(wx, wy)| wx.at(px) * wy.at(py))
     }
-
-    /// The sum of the weights over the whole footprint (the filter is separable).
-    pub fn total(&self) -> f32 {
-        match &self.taps {
-            Some((wx, wy)) => wx.total() * wy.total(),
-            None => ((self.x.1 - self.x.0 + 1) * (self.y.1 - self.y.0 + 1)).max(0) as f32,
-        }
-    }
 }
 
 /// A filter's weights along one axis of a footprint; on the stack unless the footprint is
 /// unusually wide.
 struct Taps {
     lo: i64,
-    n: usize,
     inline: [f32; Taps::INLINE],
     spilled: Vec<f32>,
 }
@@ -176,7 +176,7 @@ impl Taps {
     #[inline]
     fn new(profile: Profile, (lo, hi): (i64, i64), at: f32) -> Taps {
         let n = (hi - lo + 1).max(0) as usize;
-        let mut taps = Taps { lo, n, inline: [0.0; Taps::INLINE], spilled: Vec::new() };
+        let mut taps = Taps { lo, inline: [0.0; Taps::INLINE], spilled: Vec::new() };
         let weight = |p: i64| profile.eval(p as f32 + 0.5 - at);
         if n <= Taps::INLINE {
             for (w, p) in taps.inline.iter_mut().zip(lo..=hi) {
@@ -195,14 +195,6 @@ impl Taps {
             self.inline[i]
         } else {
             self.spilled[i]
-        }
-    }
-
-    fn total(&self) -> f32 {
-        if self.spilled.is_empty() {
-            self.inline[..self.n].iter().sum()
-        } else {
-            self.spilled.iter().sum()
         }
     }
 }
@@ -295,6 +287,9 @@ impl FilmTile {
         }
     }
 }
+
+/// Binary film format, version 2: splats divided by each pixel's filter coverage.
+const FILM_MAGIC: &[u8; 8] = b"SKLFILM2";
 
 /// The most pixels a film may have along a side.
 pub const MAX_FILM_SIDE: i64 = 1 << 16;
@@ -407,7 +402,7 @@ impl Film {
     /// Exact binary form (all accumulators as f64), for checkpoints.
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out = Vec::with_capacity(64 + self.weight.len() * 80);
-        out.extend_from_slice(b"SKLFILM1");
+        out.extend_from_slice(FILM_MAGIC);
         let (tag, param) = match self.filter {
             Filter::Box => (0u8, 0.0f32),
             Filter::Tent { radius } => (1, radius),
@@ -436,8 +431,8 @@ impl Film {
             pos += n;
             Ok(s)
         };
-        if take(8)? != b"SKLFILM1" {
-            return Err("not a skelight film".into());
+        if take(8)? != FILM_MAGIC {
+            return Err("not a skelight film of this version".into());
         }
         let mut u64s = [0u64; 4];
         for v in &mut u64s {
@@ -660,6 +655,22 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A box-filtered sample on the edge between two pixels (light-tracing positions land
+    /// there about W·2⁻²⁴ of the time) counts once, for the pixel it lies in.
+    #[test]
+    fn box_samples_on_pixel_edges_count_once() {
+        let mut film = Film::new(3, 3, Filter::Box);
+        let mut tile = FilmTile::new(0, 0, 3, 3, Filter::Box);
+        tile.splat(vec2(1.0, 2.0), Rgb::splat(1.0));
+        tile.add(vec2(2.0, 1.0), Rgb::splat(1.0));
+        film.merge_tile(&tile);
+        film.splat_paths = 1;
+        let image = film.image();
+        let total: f32 = (0..3).flat_map(|y| (0..3).map(move |x| (x, y))).map(|(x, y)| image.get(x, y).r).sum();
+        assert_eq!(total, 2.0, "{image:?}");
+        assert_eq!((image.get(1, 2).r, image.get(2, 1).r), (1.0, 1.0));
     }
 
     #[test]

@@ -18,10 +18,25 @@ use skelight::scene::Scene;
 /// also reach the aperture through the clipped region.
 #[test]
 fn every_estimator_sees_the_same_near_clipped_cornell_box() {
-    for (name, near) in [("c01_cbox_area", 2.5), ("c01_cbox_area", 4.3), ("c14_thinlens", 4.3)] {
-        println!("{name}, near clip {near}:");
+    // A card 2e-4 beyond the plane at 2.5 (z = 1.4 − 2e-4), in front of the open box: shadow
+    // rays from the plane must not step over it.
+    let card = r#"<shape type="rectangle"><transform name="to_world"><scale x="0.3" y="0.3"/><translate z="1.3998"/></transform><ref id="white"/></shape></scene>"#;
+    for (name, near, with_card) in [
+        ("c01_cbox_area", 2.5, false),
+        ("c01_cbox_area", 2.5, true),
+        ("c01_cbox_area", 4.3, false),
+        ("c14_thinlens", 4.3, false),
+    ] {
+        println!("{name}, near clip {near}{}:", if with_card { ", a card just beyond it" } else { "" });
         let clip = format!(r#"<float name="fov" value="40"/><float name="near_clip" value="{near}"/>"#);
-        let edit = |t: String| t.replace(r#"<float name="fov" value="40"/>"#, &clip);
+        let edit = |t: String| {
+            let t = t.replace(r#"<float name="fov" value="40"/>"#, &clip);
+            if with_card {
+                t.replace("</scene>", card)
+            } else {
+                t
+            }
+        };
         let scene = edited_conformance_scene(name, edit, 48, 48);
         estimators_agree(&scene, &[("pt", 256), ("lt", 256), ("bpt", 64), ("ibpt", 128)]);
     }

@@ -210,7 +210,7 @@ fn pt_matches_mitsuba_on_every_conformance_scene() {
 
 #[test]
 fn lt_matches_mitsuba_where_light_tracing_applies() {
-    run_conformance("lt", 10);
+    run_conformance("lt", 15);
 }
 
 #[test]

@@ -2,8 +2,10 @@
 //! connected to the camera (the t = 1 strategy), splatting onto the film; with a thin lens,
 //! paths that pass through the aperture count too (t = 0), the two combined by MIS. It sees
 //! what reaches the camera through non-specular surfaces only: emitters and surfaces seen in
-//! a mirror or through glass by a pinhole, and the environment seen directly, need `pt` or
-//! `bpt`.
+//! a mirror or through glass by a pinhole need `pt` or `bpt`. The environment seen directly
+//! (a path of one segment from a light at infinity, which no light path can connect to the
+//! lens) is added from one primary ray per sample when the scene has such lights, as
+//! Mitsuba's particle tracer does: its only strategy, so its weight is one.
 
 use std::cell::RefCell;
 
@@ -12,7 +14,9 @@ use super::strategies::{self, Weighting};
 use super::subpath::light_subpath;
 use super::vertex::{LensHit, Vertex};
 use super::{Integrator, Iteration};
+use crate::color::Rgb;
 use crate::film::FilmTile;
+use crate::math::vec2;
 use crate::sampling::Rng;
 use crate::scene::Scene;
 
@@ -33,9 +37,6 @@ thread_local! {
 
 impl Integrator for LightTracer {
     fn limitation(&self, scene: &Scene) -> Option<String> {
-        if !scene.infinite_lights.is_empty() {
-            return Some("light tracing cannot show an environment seen directly".into());
-        }
         if scene.camera.aperture_radius <= 0.0 {
             if let Some(m) = scene.materials.iter().find(|m| m.bsdf.has_delta_lobe()) {
                 return Some(format!(
@@ -52,8 +53,11 @@ impl Integrator for LightTracer {
     fn splats_per_sample(&self) -> u64 {
         1
     }
-    fn sample(&self, scene: &Scene, _x: usize, _y: usize, rng: &mut Rng, tile: &mut FilmTile, _: &Iteration) {
+    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile, _: &Iteration) {
         let max_depth = self.max_depth.unwrap_or(scene.settings.max_depth);
+        if !scene.infinite_lights.is_empty() {
+            add_environment_seen_directly(scene, x, y, rng, max_depth, tile);
+        }
         let w = Weighting { heuristic: Heuristic::Balance, strategies: &camera_end_strategies };
         LIGHT_PATH.with_borrow_mut(|(path, hits)| {
             light_subpath(scene, rng, max_depth, path, hits);
@@ -73,4 +77,25 @@ impl Integrator for LightTracer {
             }
         });
     }
+}
+
+/// The environment seen directly through pixel (`x`, `y`): one primary ray; its radiance if
+/// it leaves the scene, zero otherwise (every sample counts towards the pixel's average).
+fn add_environment_seen_directly(
+    scene: &Scene,
+    x: usize,
+    y: usize,
+    rng: &mut Rng,
+    max_depth: i32,
+    tile: &mut FilmTile,
+) {
+    let pos = vec2(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
+    let ray = scene.camera.generate_ray(pos, rng.next_2d());
+    let mut radiance = Rgb::BLACK;
+    if max_depth != 0 && scene.intersect(&ray).is_none() {
+        for &li in &scene.infinite_lights {
+            radiance += scene.lights[li as usize].eval_infinite(ray.d);
+        }
+    }
+    tile.add(pos, radiance);
 }

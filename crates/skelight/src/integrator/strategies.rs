@@ -24,20 +24,32 @@ impl PathWeight for Weighting<'_> {
     }
 }
 
+/// Where a shadow ray towards `to` leaves vertex `v`: off its surface, or off an emitter's or
+/// the lens's plane, or from the point itself (point lights).
+fn shadow_origin(v: &Vertex, to: Vec3) -> Vec3 {
+    if v.kind == VertexKind::Surface {
+        v.si.spawn_ray_to(to).o
+    } else if v.n().length_squared() > 0.0 {
+        offset_origin(v.p(), v.n(), to - v.p())
+    } else {
+        v.p()
+    }
+}
+
 /// Shadow ray between two vertices (either may be a point light or the lens).
 fn visible(scene: &Scene, a: &Vertex, b: &Vertex) -> bool {
-    let from = |v: &Vertex, to: Vec3| {
-        if v.kind == VertexKind::Surface {
-            v.si.spawn_ray_to(to).o
-        } else if v.n().length_squared() > 0.0 {
-            offset_origin(v.p(), v.n(), to - v.p())
-        } else {
-            v.p()
-        }
-    };
-    let o = from(a, b.p());
-    let q = from(b, o);
+    let o = shadow_origin(a, b.p());
+    let q = shadow_origin(b, o);
     !scene.occluded(&Ray { o, d: q - o, tmax: 1.0 - 1e-4 })
+}
+
+/// Shadow ray from the point where a connection to the lens crosses the near plane to light
+/// vertex `y`: cast from the plane itself (not offset), so that the margin that keeps a
+/// shadow ray off its own surfaces falls at `y`'s end and occluders just beyond the plane
+/// block it, as they block camera rays starting there.
+fn visible_from_near_plane(scene: &Scene, near_point: Vec3, y: &Vertex) -> bool {
+    let q = shadow_origin(y, near_point);
+    !scene.occluded(&Ray { o: near_point, d: q - near_point, tmax: 1.0 - 1e-4 })
 }
 
 /// s = 0: the camera sub-path's last vertex `camera[t − 1]` is on an emitter, or the path
@@ -135,8 +147,7 @@ pub fn connect_to_camera(
         (y.beta * jy.f, Some(jy))
     };
     // Occluders between the lens and the near plane are clipped away.
-    let near = Vertex::camera(cs.near_point, cam.forward, Rgb::WHITE, 0.0);
-    if throughput.is_black() || !visible(scene, y, &near) {
+    if throughput.is_black() || !visible_from_near_plane(scene, cs.near_point, y) {
         return None;
     }
     let junction = match joined {
