@@ -144,6 +144,12 @@ fn corridor_raw_obj_has_the_wrappers_surfaces() {
         (pa - pb).length() < 1e-4 && na.dot(nb) > 0.9999 && same_radiance,
         "light at {pa:?} facing {na:?}, radiance {ea:?}; the wrapper's at {pb:?} facing {nb:?}, {eb:?}"
     );
+    assert!(
+        xml.warnings.iter().any(|w| w.contains("face_normals")),
+        "the wrapper's smoothing across corners goes unreported: {:?}",
+        xml.warnings
+    );
+    assert!(!raw.warnings.iter().any(|w| w.contains("face_normals")), "{:?}", raw.warnings);
     let (fa, fb) = (least_normal_agreement(&raw), least_normal_agreement(&xml));
     assert!(fa > 0.9999, "the raw OBJ's normals stray from its faces (cos {fa})");
     // Smoothed across the corners, as Mitsuba does: 72° off a wall at the inner walls' ends.

@@ -626,6 +626,18 @@ impl Loader {
             data.normals.clear();
         } else if data.normals.is_empty() && smooth_if_missing {
             data.normals = smooth_normals(&data);
+            // Smoothing across a crease (a wall meeting a wall at 90° in one mesh) bends the
+            // shading far off the faces and changes the image a lot: say so.
+            let bend = largest_normal_bend(&data);
+            if bend > 60.0 {
+                self.warn_at(
+                    n,
+                    format!(
+                        "this {ty} has no normals; smoothed as Mitsuba does, they bend up to {bend:.0}° off its \
+                         faces (sharp creases); add <boolean name=\"face_normals\" value=\"true\"/> for flat shading"
+                    ),
+                );
+            }
         }
         let flip_normals = self.boolean(n, "flip_normals", false)?;
         if flip_normals {
@@ -697,6 +709,24 @@ fn merge_groups(groups: Vec<TriangleData>) -> TriangleData {
         out.indices.extend(g.indices.iter().map(|t| t.map(|i| i + base)));
     }
     out
+}
+
+/// The largest angle (degrees) between a triangle and the shading normal at one of its
+/// corners.
+fn largest_normal_bend(d: &TriangleData) -> f32 {
+    let mut least_cos = 1.0f32;
+    for t in &d.indices {
+        let p = t.map(|i| d.positions[i as usize]);
+        let face = (p[1] - p[0]).cross(p[2] - p[0]);
+        if face.length_squared() == 0.0 {
+            continue;
+        }
+        let face = face.normalize();
+        for &i in t {
+            least_cos = least_cos.min(face.dot(d.normals[i as usize]));
+        }
+    }
+    least_cos.clamp(-1.0, 1.0).acos().to_degrees()
 }
 
 /// Angle-weighted vertex normals (what Mitsuba computes for meshes given without normals).
