@@ -711,17 +711,19 @@ fn merge_groups(groups: Vec<TriangleData>) -> TriangleData {
     out
 }
 
+/// The unit normal of triangle `t` by its winding; `None` if it has no area.
+fn unit_face_normal(d: &TriangleData, t: &[u32; 3]) -> Option<Vec3> {
+    let p = t.map(|i| d.positions[i as usize]);
+    let face = (p[1] - p[0]).cross(p[2] - p[0]);
+    (face.length_squared() > 0.0).then(|| face.normalize())
+}
+
 /// The largest angle (degrees) between a triangle and the shading normal at one of its
 /// corners.
 fn largest_normal_bend(d: &TriangleData) -> f32 {
     let mut least_cos = 1.0f32;
     for t in &d.indices {
-        let p = t.map(|i| d.positions[i as usize]);
-        let face = (p[1] - p[0]).cross(p[2] - p[0]);
-        if face.length_squared() == 0.0 {
-            continue;
-        }
-        let face = face.normalize();
+        let Some(face) = unit_face_normal(d, t) else { continue };
         for &i in t {
             least_cos = least_cos.min(face.dot(d.normals[i as usize]));
         }
@@ -733,12 +735,8 @@ fn largest_normal_bend(d: &TriangleData) -> f32 {
 pub fn smooth_normals(d: &TriangleData) -> Vec<Vec3> {
     let mut n = vec![Vec3::ZERO; d.positions.len()];
     for t in &d.indices {
+        let Some(face) = unit_face_normal(d, t) else { continue };
         let p = t.map(|i| d.positions[i as usize]);
-        let face = (p[1] - p[0]).cross(p[2] - p[0]);
-        if face.length_squared() == 0.0 {
-            continue;
-        }
-        let face = face.normalize();
         for k in 0..3 {
             let e1 = p[(k + 1) % 3] - p[k];
             let e2 = p[(k + 2) % 3] - p[k];
