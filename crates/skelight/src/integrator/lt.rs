@@ -91,11 +91,6 @@ fn add_environment_seen_directly(
 ) {
     let pos = vec2(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
     let ray = scene.camera.generate_ray(pos, rng.next_2d());
-    let mut radiance = Rgb::BLACK;
-    if max_depth != 0 && scene.intersect(&ray).is_none() {
-        for &li in &scene.infinite_lights {
-            radiance += scene.lights[li as usize].eval_infinite(ray.d);
-        }
-    }
-    tile.add(pos, radiance);
+    let escaped = max_depth != 0 && scene.intersect(&ray).is_none();
+    tile.add(pos, if escaped { scene.environment(ray.d) } else { Rgb::BLACK });
 }
