@@ -51,7 +51,8 @@ pub fn run(
     let time = base.time.context("a comparison needs a time budget")?;
     let mut out: Vec<Series> = Vec::new();
     for name in names {
-        let integ = integrator::by_name(name).with_context(|| format!("unknown integrator '{name}'"))?;
+        let (estimator, params) = integrator::registry::parse_spec(name)?;
+        let mut integ = integrator::registry::create(&estimator, &params)?;
         // The same estimator twice (e.g. to see run-to-run spread) gets distinct file names.
         let repeats = out.iter().filter(|s| s.name == *name || s.name.starts_with(&format!("{name}#"))).count();
         let label = if repeats == 0 { name.clone() } else { format!("{name}#{}", repeats + 1) };
@@ -59,7 +60,7 @@ pub fn run(
         let mut points = Vec::new();
         let mut last: Option<f64> = None;
         let mut failure = None;
-        let r = integrator::render(scene, integ.as_ref(), &opts, None, |p, film| {
+        let r = integrator::render(scene, integ.as_mut(), &opts, None, |p, film| {
             let t = p.elapsed.as_secs_f64();
             if last.is_none_or(|l| t - l >= every.as_secs_f64()) {
                 match eval::metrics(&film.image(), reference) {

@@ -123,7 +123,8 @@ struct CompareArgs {
     /// Converged reference image (EXR) of the same scene and resolution.
     #[arg(long)]
     reference: PathBuf,
-    /// Estimators, comma-separated; speed-ups are relative to the first.
+    /// Estimators, comma-separated, each with its parameters as NAME:PARAM=VALUE:… (e.g.
+    /// pt,skelpt:strength=16); speed-ups are relative to the first.
     #[arg(long, value_delimiter = ',', default_value = "pt")]
     integrators: Vec<String>,
     /// Wall time per estimator (300, 90s, 5m, 2h).
@@ -154,6 +155,9 @@ struct ReferenceArgs {
     output: PathBuf,
     #[arg(short, long, default_value = "pt")]
     integrator: String,
+    /// An estimator parameter, NAME=VALUE (repeatable).
+    #[arg(short = 'P', long = "param", value_parser = parse_param)]
+    params: Vec<(String, String)>,
     /// Total wall time across interruptions (300, 90s, 5m, 2h).
     #[arg(long, value_parser = parse_duration)]
     time: Option<Duration>,
@@ -208,6 +212,7 @@ enum BenchKind {
     /// Samples per second of an estimator on a scene.
     Render {
         scene: PathBuf,
+        /// An estimator, with its parameters as NAME:PARAM=VALUE:…
         #[arg(short, long, default_value = "pt")]
         integrator: String,
         #[arg(long, default_value_t = 16)]
@@ -257,10 +262,13 @@ struct RenderArgs {
     /// Output image (.exr); a tone-mapped PNG is written beside it.
     #[arg(short, long, default_value = "render.exr")]
     output: PathBuf,
-    /// Estimator: pt (path tracing), lt (light tracing), bpt (bidirectional path tracing)
-    /// or ibpt (instant BPT: path- and light-tracing walks joined by MIS).
+    /// Estimator: pt, lt, bpt, ibpt, skelpt (`--help` lists them with their parameters).
     #[arg(short, long, default_value = "pt")]
     integrator: String,
+    /// An estimator parameter, NAME=VALUE (repeatable); overrides the scene's
+    /// `<integrator>` properties when the scene names the same estimator.
+    #[arg(short = 'P', long = "param", value_parser = parse_param)]
+    params: Vec<(String, String)>,
     /// Samples per pixel (default: the scene's sampler, or 16 for the default scene).
     #[arg(long, conflicts_with = "time")]
     spp: Option<u32>,
@@ -281,14 +289,18 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
-    /// bpt's MIS heuristic: balance or power.
-    #[arg(long, default_value = "balance", value_parser = parse_heuristic)]
-    heuristic: Heuristic,
+    /// bpt's MIS heuristic: balance or power (as --param heuristic=…).
+    #[arg(long, value_parser = parse_heuristic)]
+    heuristic: Option<Heuristic>,
     /// bpt only: also write each (s, t) strategy's weighted contribution to DIR/sS_tT.exr
     /// (and .png, and their means to DIR/strategies.csv). Renders once per strategy with the
     /// same random numbers, so the images add up to the full render.
     #[arg(long, value_name = "DIR")]
     debug_strategies: Option<PathBuf>,
+}
+
+fn parse_param(s: &str) -> Result<(String, String), String> {
+    integrator::params::parse_assignment(s).map_err(|e| e.to_string())
 }
 
 fn parse_constraint(s: &str) -> Result<EdgeConstraint, String> {
@@ -415,9 +427,11 @@ fn bench(what: BenchKind) -> Result<()> {
         BenchKind::Render { scene: path, integrator: name, spp, setup } => {
             let mut scene = load_scene(Some(&path), &[])?;
             setup.apply(&mut scene)?;
-            let integrator = integrator::by_name(&name).with_context(|| format!("unknown integrator '{name}'"))?;
+            let (estimator, params) = integrator::registry::parse_spec(&name)?;
+            let mut integrator = integrator::registry::create(&estimator, &params)?;
             let opts = RenderOptions { spp: Some(spp), time: None, seed: 1, threads: setup.threads };
-            let r = integrator::render(&scene, integrator.as_ref(), &opts, None, |_, _| true)?;
+            let r = integrator::render(&scene, integrator.as_mut(), &opts, None, |_, _| true)?;
+            print_preparation(&r.preparation);
             let samples = r.spp as f64 * (scene.settings.width * scene.settings.height) as f64;
             println!(
                 "{} {}: {}×{} {} spp, max depth {}, {:.3} s, {:.3} Msamples/s, mean {:?}",
@@ -464,20 +478,23 @@ struct Job {
 }
 
 impl Job {
+    #[allow(clippy::too_many_arguments)]
     fn new(
         scene_path: Option<&Path>,
         define: &[(String, String)],
         setup: &SceneSetup,
         name: &str,
+        params: &[(String, String)],
         spp: Option<u32>,
         time: Option<Duration>,
         seed: u64,
     ) -> Result<Job> {
         let mut scene = load_scene(scene_path, define)?;
         setup.apply(&mut scene)?;
-        let integrator = integrator::by_name(name).with_context(|| {
-            format!("unknown integrator '{name}'; available: {}", integrator::INTEGRATORS.join(", "))
-        })?;
+        let (integrator, warnings) = integrator::registry::create_for_scene(name, &scene.settings, params)?;
+        for w in warnings {
+            eprintln!("warning: {w}");
+        }
         let spp = match (spp, time) {
             (Some(0), _) => bail!("--spp must be at least 1"),
             (Some(s), _) => Some(s),
@@ -500,7 +517,7 @@ impl Job {
         format!(
             "{}|{}|seed {}|{}x{}|depth {}",
             self.label,
-            self.integrator.name(),
+            self.integrator.describe(),
             self.opts.seed,
             s.width,
             s.height,
@@ -510,7 +527,7 @@ impl Job {
 
     /// Renders with a progress bar; `on_pass` sees every pass (for checkpoints).
     fn run(
-        &self,
+        &mut self,
         resume: Option<(skelight::film::Film, u32)>,
         quiet: bool,
         mut on_pass: impl FnMut(&integrator::Progress, &skelight::film::Film) -> Result<()>,
@@ -523,7 +540,7 @@ impl Job {
             self.scene.lights.len(),
             s.width,
             s.height,
-            self.integrator.name(),
+            self.integrator.describe(),
             s.max_depth
         );
         let spp = self.opts.spp;
@@ -534,7 +551,7 @@ impl Job {
                 .progress_chars("=> "),
         );
         let mut failure = None;
-        let result = integrator::render(&self.scene, self.integrator.as_ref(), &self.opts, resume, |p, film| {
+        let result = integrator::render(&self.scene, self.integrator.as_mut(), &self.opts, resume, |p, film| {
             let fraction = match (p.spp_target, p.time_budget) {
                 (Some(t), None) => p.spp_done as f64 / t as f64,
                 (_, Some(b)) => p.elapsed.as_secs_f64() / b.as_secs_f64(),
@@ -557,6 +574,9 @@ impl Job {
             }
         })?;
         bar.finish_and_clear();
+        if !quiet {
+            print_preparation(&result.preparation);
+        }
         if let Some(e) = failure {
             return Err(e);
         }
@@ -580,6 +600,21 @@ fn write_outputs(film: &skelight::film::Film, spp: u32, output: &Path, exposure:
     Ok(img)
 }
 
+/// What the estimator's preparation did and how long it took (nothing for estimators
+/// without one).
+fn print_preparation(p: &integrator::Preparation) {
+    if p.stages.is_empty() && p.notes.is_empty() {
+        return;
+    }
+    eprintln!("preparation: {:.3} s (counted in the render's time)", p.elapsed.as_secs_f64());
+    for (stage, secs) in &p.stages {
+        eprintln!("  {stage:<58} {secs:8.3} s");
+    }
+    for note in &p.notes {
+        eprintln!("  {note}");
+    }
+}
+
 fn summary(r: &integrator::RenderResult, pixels: usize, img: &Image, output: &Path) {
     let secs = r.elapsed.as_secs_f64();
     let m = img.mean();
@@ -598,14 +633,25 @@ fn summary(r: &integrator::RenderResult, pixels: usize, img: &Image, output: &Pa
 }
 
 fn render(args: RenderArgs) -> Result<()> {
-    let mut job =
-        Job::new(args.scene.as_deref(), &args.define, &args.setup, &args.integrator, args.spp, args.time, args.seed)?;
-    let bpt = |only| Box::new(Bpt { max_depth: None, heuristic: args.heuristic, only });
-    if job.integrator.name() == "bpt" {
-        job.integrator = bpt(None);
-    } else if args.heuristic != Heuristic::Balance || args.debug_strategies.is_some() {
+    let mut params = args.params.clone();
+    if let Some(h) = args.heuristic {
+        params.push(("heuristic".into(), format!("{h:?}").to_lowercase()));
+    }
+    let mut job = Job::new(
+        args.scene.as_deref(),
+        &args.define,
+        &args.setup,
+        &args.integrator,
+        &params,
+        args.spp,
+        args.time,
+        args.seed,
+    )?;
+    if job.integrator.name() != "bpt" && (args.heuristic.is_some() || args.debug_strategies.is_some()) {
         bail!("--heuristic and --debug-strategies apply to --integrator bpt");
     }
+    let heuristic = args.heuristic.unwrap_or_default();
+    let bpt = |only| Box::new(Bpt { max_depth: None, heuristic, only });
     if let Some(dir) = &args.debug_strategies {
         if job.opts.spp.is_none() {
             bail!("--debug-strategies needs --spp: every strategy must see the same samples");
@@ -638,8 +684,16 @@ fn render(args: RenderArgs) -> Result<()> {
 
 /// Long render that checkpoints to OUT.exr.ckpt and resumes from it after an interruption.
 fn reference(args: ReferenceArgs) -> Result<()> {
-    let job =
-        Job::new(args.scene.as_deref(), &args.define, &args.setup, &args.integrator, args.spp, args.time, args.seed)?;
+    let job = Job::new(
+        args.scene.as_deref(),
+        &args.define,
+        &args.setup,
+        &args.integrator,
+        &args.params,
+        args.spp,
+        args.time,
+        args.seed,
+    )?;
     if job.opts.spp.is_none() && job.opts.time.is_none() {
         bail!("give --time or --spp");
     }
@@ -776,9 +830,21 @@ fn keep_freed_memory() {
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 fn keep_freed_memory() {}
 
+/// The parsed command line; `render --help` and friends list the registry's estimators.
+fn cli() -> Cli {
+    use clap::{CommandFactory, FromArgMatches};
+    let help = integrator::registry::help();
+    let mut command = Cli::command();
+    for sub in ["render", "reference", "compare"] {
+        command = command.mut_subcommand(sub, |c| c.after_long_help(help.clone()));
+    }
+    let matches = command.get_matches();
+    Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+}
+
 fn main() {
     keep_freed_memory();
-    let cli = Cli::parse();
+    let cli = cli();
     let r = match cli.command {
         Command::Render(a) => render(a),
         Command::Skeleton {

@@ -6,8 +6,6 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use skelight::light::Light;
-use skelight::math::Vec3;
 use skelight::scene::Scene;
 use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings, Anchor, ANCHOR_REACH};
 use skelight_shape::reach::Kept;
@@ -100,11 +98,7 @@ pub fn space_kept(a: &Analysis) -> String {
     format!("empty space kept: {what}; {dropped} empty voxels dropped ({:.1} %)", share * 100.0)
 }
 
-/// The camera and the lights, where light paths start and end: the analysis keeps the
-/// empty space that holds them.
-pub fn sources(scene: &Scene) -> Vec<Anchor> {
-    anchors(scene, &[AnchorKind::Lights, AnchorKind::Camera])
-}
+pub use skelight::guided::analysis::{scene_triangles, sources, to_f64};
 
 /// Which scene elements the skeleton must reach.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -113,47 +107,18 @@ pub enum AnchorKind {
     Camera,
 }
 
-/// Anchors for the scene's lights (an area light's centroid, on the side it faces; point
-/// and spot lights' positions; distant lights have no place) and its camera.
+/// Anchors for the chosen kinds of scene elements (see
+/// [`skelight::guided::analysis::anchors`]).
 pub fn anchors(scene: &Scene, kinds: &[AnchorKind]) -> Vec<Anchor> {
-    let f = to_f64;
-    let mut out = Vec::new();
-    if kinds.contains(&AnchorKind::Lights) {
-        for light in &scene.lights {
-            match light {
-                Light::Area(e) => {
-                    let (mut centroid, mut normal, mut area) = (Vec3::ZERO, Vec3::ZERO, 0.0);
-                    for [a, b, c] in &e.triangles {
-                        let n = (*b - *a).cross(*c - *a) * 0.5;
-                        centroid += (*a + *b + *c) * (n.length() / 3.0);
-                        normal += n;
-                        area += n.length();
-                    }
-                    if area > 0.0 {
-                        out.push(Anchor { position: f(centroid / area), side: f(normal) });
-                    }
-                }
-                Light::Point { position, .. } | Light::Spot { position, .. } => {
-                    out.push(Anchor { position: f(*position), side: [0.0; 3] })
-                }
-                _ => {}
-            }
-        }
-    }
-    if kinds.contains(&AnchorKind::Camera) {
-        out.push(Anchor { position: f(scene.camera.position), side: [0.0; 3] });
-    }
-    out
-}
-
-/// A renderer vector as the shape analysis takes points.
-pub fn to_f64(v: Vec3) -> [f64; 3] {
-    [v.x as f64, v.y as f64, v.z as f64]
-}
-
-/// The scene's triangles as the analysis takes them.
-pub fn scene_triangles(scene: &Scene) -> Vec<[[f64; 3]; 3]> {
-    scene.surface_triangles().iter().map(|t| t.map(to_f64)).collect()
+    use skelight::guided::analysis::AnchorKind as Kind;
+    let kinds: Vec<Kind> = kinds
+        .iter()
+        .map(|k| match k {
+            AnchorKind::Lights => Kind::Lights,
+            AnchorKind::Camera => Kind::Camera,
+        })
+        .collect();
+    skelight::guided::analysis::anchors(scene, &kinds)
 }
 
 fn graph_json(g: &SkeletonGraph) -> String {

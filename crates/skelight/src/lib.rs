@@ -14,6 +14,7 @@ pub mod color;
 pub mod eval;
 pub mod film;
 pub mod geometry;
+pub mod guided;
 pub mod imageio;
 pub mod integrator;
 pub mod light;

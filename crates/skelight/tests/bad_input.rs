@@ -240,12 +240,12 @@ fn absurd_resolutions_and_sample_counts() {
     assert_mentions(&load_err(&d.file("spp.xml", spp.as_bytes())), &["spp.xml:", "sample_count"]);
     // The render loop refuses a zero sample count or no stopping rule at all.
     let scene = skelight::scene::builtin::two_rooms();
-    let pt = by_name("pt").unwrap();
+    let mut pt = by_name("pt").unwrap();
     for opts in [
         RenderOptions { spp: Some(0), ..Default::default() },
         RenderOptions { spp: None, time: None, ..Default::default() },
     ] {
-        assert!(render(&scene, pt.as_ref(), &opts, None, |_, _| true).is_err());
+        assert!(render(&scene, pt.as_mut(), &opts, None, |_, _| true).is_err());
     }
 }
 

@@ -38,14 +38,14 @@ fn every_estimator_sees_the_same_near_clipped_cornell_box() {
             }
         };
         let scene = edited_conformance_scene(name, edit, 48, 48);
-        estimators_agree(&scene, &[("pt", 256), ("lt", 256), ("bpt", 64), ("ibpt", 128)]);
+        estimators_agree(&scene, &every_estimator());
     }
 }
 
 /// Mean over `seeds` independent renders of the mean of each pixel class (interior, edges
 /// without corners, corners), summed over channels, and its standard error across seeds.
 fn class_means(scene: &Scene, name: &str, spp: u32, seeds: u64) -> [(f64, f64); 3] {
-    let integrator = by_name(name).unwrap();
+    let mut integrator = by_name(name).unwrap();
     let (w, h) = (scene.settings.width, scene.settings.height);
     let class = |x: usize, y: usize| {
         let on_x = x == 0 || x == w - 1;
@@ -54,7 +54,7 @@ fn class_means(scene: &Scene, name: &str, spp: u32, seeds: u64) -> [(f64, f64); 
     };
     let mut per_seed = vec![[0.0f64; 3]; seeds as usize];
     for (seed, out) in per_seed.iter_mut().enumerate() {
-        let img = render_spp(scene, integrator.as_ref(), spp, 100 + seed as u64).image();
+        let img = render_spp(scene, integrator.as_mut(), spp, 100 + seed as u64).image();
         let (mut sum, mut count) = ([0.0; 3], [0.0; 3]);
         for y in 0..h {
             for x in 0..w {

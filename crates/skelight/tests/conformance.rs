@@ -7,7 +7,7 @@ use std::path::Path;
 
 use common::*;
 use skelight::imageio::Image;
-use skelight::integrator::by_name;
+use skelight::integrator::{by_name, Integrator};
 use skelight::scene::load::load;
 
 const SPP: u32 = 128;
@@ -94,7 +94,7 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
     let dir = shared_dir().join("conformance");
     let entries = manifest(&dir);
     assert!(entries.len() >= 18, "expected the conformance manifest to list scenes");
-    let integrator = by_name(integrator_name).expect("integrator");
+    let mut integrator = by_name(integrator_name).expect("integrator");
     let mut failures = Vec::new();
     let mut tested = 0;
     // SKELIGHT_CONFORMANCE=c08,c11 restricts a run to scenes whose names start so.
@@ -110,18 +110,18 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
         tested += 1;
         let reference = Image::load(&dir.join("refs").join(format!("{name}.exr"))).expect("reference");
         let noise = reference_noise(&scene, 16, ref_spp);
-        let judge = |spp: u32, seeds: (u64, u64)| {
-            let a = render_spp(&scene, integrator.as_ref(), spp, seeds.0);
-            let b = render_spp(&scene, integrator.as_ref(), spp, seeds.1);
+        let judge = |integrator: &mut dyn Integrator, spp: u32, seeds: (u64, u64)| {
+            let a = render_spp(&scene, integrator, spp, seeds.0);
+            let b = render_spp(&scene, integrator, spp, seeds.1);
             let c = compare(&a, &b, &reference, &noise, ref_mean);
             let ok = c.t < T_LIMIT && c.z.iter().all(|z| *z < Z_LIMIT);
             (c, ok)
         };
         if let Some(known) = KNOWN_REFERENCE_DIFFERENCES.iter().find(|k| k.scene == name) {
-            failures.extend(check_against_corrected_mitsuba(integrator_name, integrator.as_ref(), scene, known));
+            failures.extend(check_against_corrected_mitsuba(integrator_name, integrator.as_mut(), scene, known));
             continue;
         }
-        let (mut c, mut ok) = judge(SPP, (0x1234_5678, 0x9E37_79B9_7F4A));
+        let (mut c, mut ok) = judge(integrator.as_mut(), SPP, (0x1234_5678, 0x9E37_79B9_7F4A));
         if !ok {
             // Rare bright paths (a caustic seen in a mirror, which only one strategy finds)
             // make the noise heavy-tailed: at few samples both renders usually miss them and
@@ -136,7 +136,7 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
                 c.z[2],
                 4 * SPP
             );
-            (c, ok) = judge(4 * SPP, (0x0051_7CC1_B727, 0x2545_F491_4F6C));
+            (c, ok) = judge(integrator.as_mut(), 4 * SPP, (0x0051_7CC1_B727, 0x2545_F491_4F6C));
         }
         println!(
             "{integrator_name} {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (ref {:.4} {:.4} {:.4}) {}",
@@ -159,7 +159,7 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
 /// mean of Mitsuba's physically right variant, within both standard errors.
 fn check_against_corrected_mitsuba(
     integrator_name: &str,
-    integrator: &dyn skelight::integrator::Integrator,
+    integrator: &mut dyn Integrator,
     mut scene: skelight::scene::Scene,
     known: &KnownDifference,
 ) -> Option<String> {
@@ -199,7 +199,7 @@ fn our_estimators_agree_where_mitsubas_reference_differs() {
         let mut scene = load(&path, &[]).unwrap_or_else(|e| panic!("{}: {e}", known.scene));
         scene.set_resolution(64, 64);
         println!("{}:", known.scene);
-        estimators_agree(&scene, &[("pt", 256), ("lt", 256), ("bpt", 64), ("ibpt", 128)]);
+        estimators_agree(&scene, &every_estimator());
     }
 }
 
@@ -221,4 +221,19 @@ fn bpt_matches_mitsuba_on_every_conformance_scene() {
 #[test]
 fn ibpt_matches_mitsuba_on_every_conformance_scene() {
     run_conformance("ibpt", 18);
+}
+
+#[test]
+fn skelpt_matches_mitsuba_on_every_conformance_scene() {
+    run_conformance("skelpt", 18);
+}
+
+/// The estimators the tests above check: every one the registry offers must be among them.
+const CHECKED: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt"];
+
+#[test]
+fn every_registered_estimator_has_a_conformance_test() {
+    for name in skelight::integrator::registry::names() {
+        assert!(CHECKED.contains(&name), "{name} is registered but has no conformance test here");
+    }
 }

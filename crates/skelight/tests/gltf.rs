@@ -63,7 +63,7 @@ fn floor_under_a_point_light_has_the_exact_radiance() {
     assert_eq!(scene.triangle_count(), 2);
     assert_eq!(scene.lights.len(), 1);
     scene.set_resolution(8, 8);
-    let film = render_spp(&scene, by_name("pt").unwrap().as_ref(), 16, 1);
+    let film = render_spp(&scene, by_name("pt").unwrap().as_mut(), 16, 1);
     let (m, se) = film_mean_se(&film);
     // L ∝ cos³θ off the axis; at the field's corners (θ ≤ 0.0142 rad) that loses 1.5·θ² < 3e-4.
     for c in 0..3 {

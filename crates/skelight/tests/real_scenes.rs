@@ -34,11 +34,11 @@ fn every_real_scene_loads_and_renders() {
         repo_scene("corridor-raw.toml"),
         repo_scene("sibenik-two-lights.toml"),
     ];
-    let pt = by_name("pt").unwrap();
+    let mut pt = by_name("pt").unwrap();
     for path in scenes {
         let scene = load_small(&path, 48, 32);
         assert!(scene.triangle_count() > 0 && !scene.lights.is_empty(), "{}", path.display());
-        let film = render_spp(&scene, pt.as_ref(), 4, 1);
+        let film = render_spp(&scene, pt.as_mut(), 4, 1);
         let img = film.image();
         assert!(img.pixels.iter().all(|p| p.is_finite()), "{}", path.display());
         assert!(img.mean().max_component() > 0.0, "{} rendered black", path.display());
@@ -65,7 +65,7 @@ fn veach_ajar_matches_mitsuba_on_the_same_scene_file() {
     let (w, h) = (160usize, 90usize);
     let dir = shared_dir().join("scenes/veach-ajar");
     let scene = load_small(&dir.join("scene.xml"), w, h);
-    let film = render_spp(&scene, by_name("pt").unwrap().as_ref(), OURS_SPP as u32, 17);
+    let film = render_spp(&scene, by_name("pt").unwrap().as_mut(), OURS_SPP as u32, 17);
     let (m, se) = film_mean_se(&film);
     let tungsten = Image::load(&dir.join("TungstenRender.exr")).unwrap().mean();
     // Mitsuba's image mean averages 1024 samples over 4× our pixels.
@@ -172,9 +172,9 @@ fn corridor_raw_obj_matches_the_xml_wrapper() {
         .unwrap()
         .replace(r#".obj"/>"#, r#".obj"/><boolean name="face_normals" value="true"/>"#);
     std::fs::write(tmp.join("scene.xml"), xml).unwrap();
-    let pt = by_name("pt").unwrap();
-    let a = render_spp(&load_small(&tmp.join("scene.xml"), 64, 64), pt.as_ref(), 256, 1);
-    let b = render_spp(&load_small(&repo_scene("corridor-raw.toml"), 64, 64), pt.as_ref(), 256, 2);
+    let mut pt = by_name("pt").unwrap();
+    let a = render_spp(&load_small(&tmp.join("scene.xml"), 64, 64), pt.as_mut(), 256, 1);
+    let b = render_spp(&load_small(&repo_scene("corridor-raw.toml"), 64, 64), pt.as_mut(), 256, 2);
     let ((ma, sa), (mb, sb)) = (film_mean_se(&a), film_mean_se(&b));
     for c in 0..3 {
         let z = (ma[c] - mb[c]).abs() / (sa[c] * sa[c] + sb[c] * sb[c]).sqrt();
@@ -188,12 +188,20 @@ fn corridor_raw_obj_matches_the_xml_wrapper() {
 #[test]
 fn estimators_agree_on_the_corridor() {
     let scene = load_small(&repo_scene("corridor-raw.toml"), 48, 48);
-    estimators_agree(&scene, &[("pt", 256), ("lt", 256), ("bpt", 64), ("ibpt", 128)]);
+    estimators_agree(&scene, &every_estimator());
 }
 
 /// … and of veach-door, lit through the gap of a door left ajar.
 #[test]
 fn estimators_agree_on_veach_door() {
     let scene = load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 64, 40);
-    estimators_agree(&scene, &[("pt", 256), ("lt", 256), ("bpt", 64), ("ibpt", 128)]);
+    estimators_agree(&scene, &every_estimator());
+}
+
+/// … and of sibenik lit by the seeds' two lights (skelpt must not be biased by a scene
+/// whose skeleton runs through a cathedral's nave and aisles).
+#[test]
+fn estimators_agree_on_sibenik() {
+    let scene = load_small(&repo_scene("sibenik-two-lights.toml"), 48, 32);
+    estimators_agree(&scene, &[("pt", 128), ("bpt", 32), ("skelpt", 128)]);
 }

@@ -3,13 +3,11 @@
 //! its pixel's light sub-path by every (s, t) strategy, weighted by exact MIS (balance
 //! heuristic by default, power on request).
 
-use std::cell::RefCell;
-
 use super::mis::{running_sums, AllStrategies, Heuristic, PathWeight};
 use super::strategies;
 use super::subpath::camera_subpath;
 use super::vertex::Vertex;
-use super::{Integrator, Iteration};
+use super::{Integrator, Iteration, SampleContext, Scratch};
 use crate::color::Rgb;
 use crate::film::FilmTile;
 use crate::math::vec2;
@@ -25,17 +23,13 @@ pub struct Bpt {
     pub only: Option<(usize, usize)>,
 }
 
-/// A thread's buffers for one pixel sample: its camera sub-path and the MIS running sums
+/// A tile's buffers for one pixel sample: its camera sub-path and the MIS running sums
 /// of both sub-paths.
 #[derive(Default)]
-struct Scratch {
+struct PixelScratch {
     camera: Vec<Vertex>,
     camera_sums: Vec<f32>,
     light_sums: Vec<f32>,
-}
-
-thread_local! {
-    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
 }
 
 impl Bpt {
@@ -121,7 +115,11 @@ impl Integrator for Bpt {
         let pixels = scene.settings.width * scene.settings.height;
         into.light_paths.trace(scene, pixels, seed, index, self.max_depth(scene));
     }
-    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile, it: &Iteration) {
+    fn new_scratch(&self) -> Scratch {
+        Scratch::new(PixelScratch::default())
+    }
+    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
+        let (it, scratch, tile) = (cx.iteration, &mut *cx.scratch, &mut *cx.tile);
         let pixel = y * scene.settings.width + x;
         let (light, hits) = if pixel < it.light_paths.len() {
             (it.light_paths.path(pixel), it.light_paths.lens_hits(pixel))
@@ -129,14 +127,12 @@ impl Integrator for Bpt {
             (&[][..], &[][..])
         };
         let pos = vec2(x as f32, y as f32) + rng.next_2d();
-        SCRATCH.with_borrow_mut(|scratch| {
-            let Scratch { camera, camera_sums, light_sums } = scratch;
-            camera_subpath(scene, pos, rng, self.max_depth(scene), camera);
-            running_sums(scene, camera, self.heuristic, camera_sums);
-            running_sums(scene, light, self.heuristic, light_sums);
-            let w = AllStrategies { heuristic: self.heuristic, light_sums, camera_sums };
-            let l = self.sample_strategies(scene, light, hits, camera, rng, tile, &w);
-            tile.add(pos, l);
-        });
+        let PixelScratch { camera, camera_sums, light_sums } = scratch.get::<PixelScratch>();
+        camera_subpath(scene, pos, rng, self.max_depth(scene), camera);
+        running_sums(scene, camera, self.heuristic, camera_sums);
+        running_sums(scene, light, self.heuristic, light_sums);
+        let w = AllStrategies { heuristic: self.heuristic, light_sums, camera_sums };
+        let l = self.sample_strategies(scene, light, hits, camera, rng, tile, &w);
+        tile.add(pos, l);
     }
 }

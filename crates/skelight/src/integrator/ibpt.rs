@@ -16,7 +16,7 @@ use super::mis::{self, remap_delta, Heuristic, Junction, PathWeight, SubPath};
 use super::strategies;
 use super::subpath::{camera_subpath_start, max_vertices, random_walk, start_light_subpath, VertexSink};
 use super::vertex::{LensHit, Vertex, VertexKind};
-use super::{Integrator, Iteration};
+use super::{Integrator, SampleContext};
 use crate::color::Rgb;
 use crate::film::FilmTile;
 use crate::math::vec2;
@@ -250,7 +250,8 @@ impl Integrator for InstantBpt {
     fn splats_per_sample(&self) -> u64 {
         1
     }
-    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile, _: &Iteration) {
+    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
+        let tile = &mut *cx.tile;
         let max_depth = scene.settings.max_depth;
         // Path-tracing pass: implicit and explicit view paths.
         let pos = vec2(x as f32, y as f32) + rng.next_2d();

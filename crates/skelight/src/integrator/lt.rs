@@ -7,13 +7,11 @@
 //! lens) is added from one primary ray per sample when the scene has such lights, as
 //! Mitsuba's particle tracer does: its only strategy, so its weight is one.
 
-use std::cell::RefCell;
-
 use super::mis::Heuristic;
 use super::strategies::{self, Weighting};
 use super::subpath::light_subpath;
 use super::vertex::{LensHit, Vertex};
-use super::{Integrator, Iteration};
+use super::{Integrator, SampleContext, Scratch};
 use crate::color::Rgb;
 use crate::film::FilmTile;
 use crate::math::vec2;
@@ -31,9 +29,8 @@ pub fn camera_end_strategies(_s: usize, t: usize) -> bool {
     t <= 1
 }
 
-thread_local! {
-    static LIGHT_PATH: RefCell<(Vec<Vertex>, Vec<LensHit>)> = const { RefCell::new((Vec::new(), Vec::new())) };
-}
+/// A tile's buffers for one light sub-path and the lens hits along it.
+type LightPathScratch = (Vec<Vertex>, Vec<LensHit>);
 
 impl Integrator for LightTracer {
     fn limitation(&self, scene: &Scene) -> Option<String> {
@@ -53,13 +50,19 @@ impl Integrator for LightTracer {
     fn splats_per_sample(&self) -> u64 {
         1
     }
-    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile, _: &Iteration) {
+    fn new_scratch(&self) -> Scratch {
+        Scratch::new(LightPathScratch::default())
+    }
+    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
+        let tile = &mut *cx.tile;
+        let scratch = &mut *cx.scratch;
         let max_depth = self.max_depth.unwrap_or(scene.settings.max_depth);
         if !scene.infinite_lights.is_empty() {
             add_environment_seen_directly(scene, x, y, rng, max_depth, tile);
         }
         let w = Weighting { heuristic: Heuristic::Balance, strategies: &camera_end_strategies };
-        LIGHT_PATH.with_borrow_mut(|(path, hits)| {
+        let (path, hits) = scratch.get::<LightPathScratch>();
+        {
             light_subpath(scene, rng, max_depth, path, hits);
             let fits = |s: usize| max_depth < 0 || s <= max_depth as usize;
             for s in 1..=path.len() {
@@ -75,7 +78,7 @@ impl Integrator for LightTracer {
                     tile.splat(hit.raster, strategies::light_hits_lens(scene, path, hit, &w));
                 }
             }
-        });
+        }
     }
 }
 

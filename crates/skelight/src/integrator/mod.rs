@@ -8,11 +8,15 @@ pub mod bpt;
 pub mod ibpt;
 pub mod lt;
 pub mod mis;
+pub mod params;
 pub mod pt;
+pub mod registry;
+pub mod skelpt;
 pub mod strategies;
 pub mod subpath;
 pub mod vertex;
 
+use std::any::Any;
 use std::time::{Duration, Instant};
 
 use crate::film::{Film, FilmTile};
@@ -20,12 +24,27 @@ use crate::sampling::Rng;
 use crate::scene::Scene;
 
 /// An estimator of the pixel integral.
-pub trait Integrator: Sync {
+///
+/// A render calls [`Integrator::prepare`] once, then, pass after pass,
+/// [`Integrator::prepare_iteration`] for each sample index of the pass and
+/// [`Integrator::sample`] for every pixel and sample index, each tile of the film with its
+/// own [`Scratch`], and at the end of the pass [`Integrator::finish_pass`] with those
+/// scratches in tile order (so a render stays a pure function of its inputs).
+pub trait Integrator: Sync + Send {
     fn name(&self) -> &'static str;
-    /// Takes one camera sample in pixel (`x`, `y`) and records it in `tile` (and any
-    /// light-path splats anywhere on the film). `iteration` holds what
-    /// [`Integrator::prepare_iteration`] made for this sample index.
-    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, tile: &mut FilmTile, iteration: &Iteration);
+    /// Work done once per render before any sample, from the scene alone (an analysis of
+    /// its empty space, importance from its lights). Counted in the render's time.
+    fn prepare(&mut self, _scene: &Scene) -> Result<Preparation, PrepareError> {
+        Ok(Preparation::default())
+    }
+    /// A tile's working memory (path buffers, statistics to learn from), made once per
+    /// tile and pass and handed to every [`Integrator::sample`] of that tile.
+    fn new_scratch(&self) -> Scratch {
+        Scratch::none()
+    }
+    /// Takes one camera sample in pixel (`x`, `y`) and records it in `cx.tile` (and any
+    /// light-path splats anywhere on the film).
+    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext);
     /// Whether the estimator shares work between the pixels of an iteration.
     fn prepares_iterations(&self) -> bool {
         false
@@ -34,6 +53,10 @@ pub trait Integrator: Sync {
     /// before any of them is sampled, into `into` (whose buffers a previous iteration may
     /// have left allocated, to be reused). Must depend only on the scene, `seed` and `index`.
     fn prepare_iteration(&self, _scene: &Scene, _seed: u64, _index: u64, _into: &mut Iteration) {}
+    /// Learns from a finished pass (what its tiles' scratches gathered, in tile order).
+    /// Whatever it changes applies from the next pass on: within a pass the estimator is
+    /// fixed, so each pass is unbiased on its own.
+    fn finish_pass(&mut self, _scene: &Scene, _scratches: &mut [Scratch]) {}
     /// Light paths traced per camera sample (normalises splats; 0 if none).
     fn splats_per_sample(&self) -> u64 {
         0
@@ -43,7 +66,53 @@ pub trait Integrator: Sync {
     fn limitation(&self, _scene: &Scene) -> Option<String> {
         None
     }
+    /// Its parameters as `name=value` pairs, for reports and checkpoint keys.
+    fn describe(&self) -> String {
+        self.name().to_string()
+    }
 }
+
+/// What one camera sample writes to and may use besides the scene and its random numbers.
+pub struct SampleContext<'a> {
+    /// The tile of the film the pixel lies in (splats may land anywhere on the film).
+    pub tile: &'a mut FilmTile,
+    /// What [`Integrator::prepare_iteration`] made for this sample index.
+    pub iteration: &'a Iteration,
+    /// The tile's working memory.
+    pub scratch: &'a mut Scratch,
+}
+
+/// A tile's working memory, of whatever type its estimator chose.
+pub struct Scratch(Box<dyn Any + Send>);
+
+impl Scratch {
+    pub fn new<T: Any + Send>(value: T) -> Scratch {
+        Scratch(Box::new(value))
+    }
+    /// For estimators that need none.
+    pub fn none() -> Scratch {
+        Scratch(Box::new(()))
+    }
+    /// The estimator's own type (made by its [`Integrator::new_scratch`]).
+    pub fn get<T: Any>(&mut self) -> &mut T {
+        self.0.downcast_mut().expect("a scratch made by the same estimator's new_scratch")
+    }
+}
+
+/// What [`Integrator::prepare`] did, for reports.
+#[derive(Clone, Debug, Default)]
+pub struct Preparation {
+    /// Its stages and their wall times in seconds.
+    pub stages: Vec<(String, f64)>,
+    /// Facts worth a line in the report (node counts, fallbacks taken).
+    pub notes: Vec<String>,
+    /// Total wall time (filled by [`render`]).
+    pub elapsed: Duration,
+}
+
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct PrepareError(pub String);
 
 /// What all pixels of one iteration (one sample each) share.
 #[derive(Default)]
@@ -83,7 +152,9 @@ pub struct Progress {
 pub struct RenderResult {
     pub film: Film,
     pub spp: u32,
+    /// Wall time, preparation included.
     pub elapsed: Duration,
+    pub preparation: Preparation,
 }
 
 const TILE: usize = 32;
@@ -105,13 +176,16 @@ pub enum RenderError {
     Options(String),
     #[error("cannot start worker threads: {0}")]
     Threads(String),
+    #[error("preparing {estimator}: {error}")]
+    Prepare { estimator: &'static str, error: PrepareError },
 }
 
-/// Renders progressively until the sample count or the time budget is reached.
-/// `progress` runs after every pass; returning `false` from it stops early.
+/// Prepares `integrator` for `scene`, then renders progressively until the sample count or
+/// the time budget (which the preparation counts against) is reached. `progress` runs after
+/// every pass; returning `false` from it stops early.
 pub fn render(
     scene: &Scene,
-    integrator: &dyn Integrator,
+    integrator: &mut dyn Integrator,
     opts: &RenderOptions,
     film: Option<(Film, u32)>,
     mut progress: impl FnMut(&Progress, &Film) -> bool,
@@ -127,13 +201,17 @@ pub fn render(
         .num_threads(opts.threads)
         .build()
         .map_err(|e| RenderError::Threads(e.to_string()))?;
+    let start = Instant::now();
+    let mut preparation = pool
+        .install(|| integrator.prepare(scene))
+        .map_err(|error| RenderError::Prepare { estimator: integrator.name(), error })?;
+    preparation.elapsed = start.elapsed();
     let (mut film, mut done) = film.unwrap_or_else(|| (Film::new(w, h, scene.settings.filter), 0));
     let tile = tile_size(w, h);
     let tiles: Vec<(usize, usize, usize, usize)> = (0..h.div_ceil(tile))
         .flat_map(|ty| (0..w.div_ceil(tile)).map(move |tx| (tx * tile, ty * tile)))
         .map(|(x, y)| (x, y, tile.min(w - x), tile.min(h - y)))
         .collect();
-    let start = Instant::now();
     // Passes of about 2^18 samples, aligned to multiples of `pass` samples per pixel from
     // sample 0, so that a render resumed from a checkpoint (taken between passes) adds up
     // its sums in exactly the same order as an uninterrupted one.
@@ -152,32 +230,36 @@ pub fn render(
         }
         let n = (pass - done % pass).min(remaining);
         let first = done;
-        let results: Vec<FilmTile> = pool.install(|| {
+        let shared: &dyn Integrator = integrator;
+        let (results, mut scratches): (Vec<FilmTile>, Vec<Scratch>) = pool.install(|| {
             use rayon::prelude::*;
             let iterations = &mut iterations[..n as usize];
             iterations.par_iter_mut().zip(first..first + n).for_each(|(it, s)| {
-                integrator.prepare_iteration(scene, opts.seed, s as u64, it);
+                shared.prepare_iteration(scene, opts.seed, s as u64, it);
             });
             let iterations = &*iterations;
             tiles
                 .par_iter()
                 .map(|&(x0, y0, tw, th)| {
                     let mut tile = FilmTile::new(x0, y0, tw, th, film.filter);
+                    let mut scratch = shared.new_scratch();
                     for y in y0..y0 + th {
                         for x in x0..x0 + tw {
                             let pixel = (y * w + x) as u64;
                             for s in first..first + n {
                                 let mut rng = Rng::new(opts.seed, pixel, s as u64);
-                                let it = &iterations[(s - first) as usize];
-                                integrator.sample(scene, x, y, &mut rng, &mut tile, it);
+                                let iteration = &iterations[(s - first) as usize];
+                                let mut cx = SampleContext { tile: &mut tile, iteration, scratch: &mut scratch };
+                                shared.sample(scene, x, y, &mut rng, &mut cx);
                             }
                         }
                     }
-                    tile
+                    (tile, scratch)
                 })
-                .collect()
+                .unzip()
         });
         pool.install(|| film.merge_tiles(&results));
+        integrator.finish_pass(scene, &mut scratches);
         film.splat_paths += integrator.splats_per_sample() * n as u64 * (w * h) as u64;
         done += n;
         let elapsed = start.elapsed();
@@ -192,19 +274,10 @@ pub fn render(
             break;
         }
     }
-    Ok(RenderResult { film, spp: done, elapsed: start.elapsed() })
+    Ok(RenderResult { film, spp: done, elapsed: start.elapsed(), preparation })
 }
 
-/// Builds an estimator by its command-line name.
+/// Builds an estimator by name with its default parameters (see [`registry`]).
 pub fn by_name(name: &str) -> Option<Box<dyn Integrator>> {
-    match name {
-        "pt" | "path" => Some(Box::new(pt::PathTracer::default())),
-        "lt" => Some(Box::new(lt::LightTracer::default())),
-        "bpt" => Some(Box::new(bpt::Bpt::default())),
-        "ibpt" => Some(Box::new(ibpt::InstantBpt)),
-        _ => None,
-    }
+    registry::create(name, &[]).ok()
 }
-
-/// Names accepted by [`by_name`].
-pub const INTEGRATORS: &[&str] = &["pt", "lt", "bpt", "ibpt"];

@@ -203,8 +203,11 @@ pub fn light_subpath(
 /// The first vertex of a light sub-path and the ray leaving it.
 pub struct LightStart {
     pub vertex: Vertex,
-    ray: Ray,
-    beta: Rgb,
+    /// The ray leaving the light.
+    pub ray: Ray,
+    /// Its throughput: emitted radiance × |cos| over the joint density of light, origin
+    /// and direction (the power it carries, eq. 176's Le/p).
+    pub beta: Rgb,
     pdf_dir: f32,
 }
 

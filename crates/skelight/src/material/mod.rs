@@ -211,6 +211,22 @@ impl Bsdf {
         }
     }
 
+    /// Whether every reflection is concentrated in a narrow cone around a mirror direction
+    /// (a delta lobe, or microfacets with roughness below 0.1, Phong exponents above 100):
+    /// sampling any other distribution there wastes its samples.
+    pub fn near_specular(&self) -> bool {
+        const ROUGH: f32 = 0.1;
+        let narrow = |m: &microfacet::Microfacet| m.alpha_u.max(m.alpha_v) < ROUGH;
+        match self {
+            Bsdf::RoughConductor(c) => narrow(&c.distribution),
+            Bsdf::RoughDielectric(d) => narrow(&d.distribution),
+            Bsdf::Phong(p) => p.exponent > 100.0,
+            Bsdf::Ward(w) => w.alpha_u.max(w.alpha_v) < ROUGH,
+            Bsdf::TwoSided(f, b) => f.near_specular() && b.near_specular(),
+            _ => self.has_delta_lobe() && !self.has_smooth(),
+        }
+    }
+
     /// How many BSDFs this one is made of, itself included.
     pub fn node_count(&self) -> usize {
         match self {

@@ -72,6 +72,7 @@ pub fn two_rooms_description() -> SceneDescription {
         max_depth: 8,
         rr_depth: 5,
         integrator: "path".into(),
+        integrator_params: Vec::new(),
     };
     let view = Transform::look_at([0.5, 1.4, 3.6], [4.1, 1.0, 1.9], [0.0, 1.0, 0.0]).expect("valid view");
     let camera =

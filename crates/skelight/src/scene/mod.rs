@@ -105,8 +105,11 @@ pub struct RenderSettings {
     pub max_depth: i32,
     /// Depth from which Russian roulette starts.
     pub rr_depth: u32,
-    /// Integrator the file names (informational; the command line chooses).
+    /// Integrator the file names (the command line chooses the estimator).
     pub integrator: String,
+    /// The integrator's other properties as `name`, `value` text (Mitsuba's `<float
+    /// name="strength" value="16"/>`), applied when the chosen estimator is the one named.
+    pub integrator_params: Vec<(String, String)>,
 }
 
 impl Default for RenderSettings {
@@ -119,6 +122,7 @@ impl Default for RenderSettings {
             max_depth: -1,
             rr_depth: 5,
             integrator: "path".into(),
+            integrator_params: Vec::new(),
         }
     }
 }

@@ -22,7 +22,7 @@ pub fn shared_dir() -> PathBuf {
     p
 }
 
-pub fn render_spp(scene: &Scene, integrator: &dyn Integrator, spp: u32, seed: u64) -> Film {
+pub fn render_spp(scene: &Scene, integrator: &mut dyn Integrator, spp: u32, seed: u64) -> Film {
     let opts = RenderOptions { spp: Some(spp), time: None, seed, threads: 0 };
     render(scene, integrator, &opts, None, |_, _| true).expect("render").film
 }
@@ -117,8 +117,8 @@ pub fn compare(fa: &Film, fb: &Film, reference: &Image, reference_variance: &Ima
 /// pixel, estimated from skelight's own path tracer (the estimator Mitsuba used) at
 /// `spp` samples and scaled to the reference's sample count.
 pub fn reference_noise(scene: &Scene, spp: u32, ref_spp: u32) -> Image {
-    let pt = skelight::integrator::by_name("pt").expect("pt");
-    let var = render_spp(scene, pt.as_ref(), spp, 0x005E_ED0F_4E5E).variance_image();
+    let mut pt = skelight::integrator::by_name("pt").expect("pt");
+    let var = render_spp(scene, pt.as_mut(), spp, 0x005E_ED0F_4E5E).variance_image();
     let scale = spp as f32 / ref_spp as f32;
     Image { pixels: var.pixels.iter().map(|p| *p * scale).collect(), ..var }
 }
@@ -129,19 +129,37 @@ pub const T_LIMIT: f64 = 3.0;
 /// z limit for 3 channels × ~20 scenes per estimator: a Gaussian exceeds 4.5 with p ≈ 7e-6.
 pub const Z_LIMIT: f64 = 4.5;
 
+/// Every estimator of the registry with the samples per pixel the agreement tests give it:
+/// `pt`'s count by default, more where a sample is cheaper and noisier (light tracing),
+/// fewer where it is dearer and less noisy (BPT). A new estimator is tested everywhere these
+/// lists are used without touching the tests.
+pub fn every_estimator() -> Vec<(&'static str, u32)> {
+    skelight::integrator::registry::names()
+        .into_iter()
+        .map(|name| {
+            let spp = match name {
+                "bpt" => 64,
+                "ibpt" => 128,
+                _ => 256,
+            };
+            (name, spp)
+        })
+        .collect()
+}
+
 /// Every estimator renders `scene` twice (independent seeds); all pairs must agree in the
 /// image mean (z-test) and block by block (8×8 block T between estimators ≈ 1).
 pub fn estimators_agree(scene: &Scene, runs: &[(&str, u32)]) {
     let renders: Vec<(&str, Image, Image)> = runs
         .iter()
         .filter_map(|&(name, spp)| {
-            let i = by_name(name).unwrap();
+            let mut i = by_name(name).unwrap();
             if let Some(why) = i.limitation(scene) {
                 println!("{name} skipped: {why}");
                 return None;
             }
             let (a, b) =
-                (render_spp(scene, i.as_ref(), spp, 11).image(), render_spp(scene, i.as_ref(), spp, 12).image());
+                (render_spp(scene, i.as_mut(), spp, 11).image(), render_spp(scene, i.as_mut(), spp, 12).image());
             Some((name, a, b))
         })
         .collect();

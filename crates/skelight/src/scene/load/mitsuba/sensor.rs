@@ -17,6 +17,7 @@ impl Loader {
         let to_world = self.transform(n, "to_world")?;
         let mut settings = RenderSettings {
             integrator: self.desc.settings.integrator.clone(),
+            integrator_params: self.desc.settings.integrator_params.clone(),
             max_depth: self.desc.settings.max_depth,
             rr_depth: self.desc.settings.rr_depth,
             ..RenderSettings::default()
@@ -105,8 +106,21 @@ impl Loader {
                 None => break,
             }
         }
+        // Properties other than the depths, for the estimator of the same name to read.
+        let mut params = Vec::new();
+        for c in node.children().filter(|c| c.is_element()) {
+            if !matches!(c.tag_name().name(), "integer" | "float" | "boolean" | "string") {
+                continue;
+            }
+            if let (Some(name), Some(value)) = (self.attr(c, "name")?, self.attr(c, "value")?) {
+                if name != "max_depth" && name != "rr_depth" {
+                    params.push((name, value));
+                }
+            }
+        }
         let s = &mut self.desc.settings;
         s.integrator = ty;
+        s.integrator_params = params;
         let (md, rr) = (self.int(node, "max_depth", -1)?, self.int(node, "rr_depth", 5)?);
         if md < -1 || rr < 0 {
             return Err(self.err(node, "max_depth must be ≥ -1 and rr_depth ≥ 0"));

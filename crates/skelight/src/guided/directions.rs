@@ -1,0 +1,231 @@
+//! Skeleton sampling of directions (thesis §9.2–9.3): for every skeleton node, the
+//! importance point towards each importance node (eq. 162) and the probability of choosing
+//! it (eq. 164–165); at a surface point, a cos^s lobe around the direction to the chosen
+//! importance point (eq. 163), and the density of the whole mixture (eq. 167) that MIS
+//! needs (a sum over every importance node of every light, not only the chosen one's).
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::f32::consts::PI;
+
+use rayon::prelude::*;
+
+use super::SkeletonGuide;
+use crate::geometry::Ray;
+use crate::math::{Frame, Vec2, Vec3};
+use crate::scene::Scene;
+
+/// Selection probabilities below this share of a node's total are dropped (and the rest
+/// renormalised): they would cost a lobe evaluation in every density for nothing.
+const NEGLIGIBLE: f32 = 1e-3;
+
+/// One importance node as seen from one skeleton node.
+#[derive(Clone, Copy, Debug)]
+pub struct Target {
+    /// The importance point (eq. 162).
+    pub point: Vec3,
+    /// c_i (eq. 165).
+    pub probability: f32,
+    /// Sum of the probabilities up to and including this one.
+    pub cumulative: f32,
+}
+
+/// Per skeleton node, its targets, in one array.
+#[derive(Clone, Debug, Default)]
+pub struct Directions {
+    /// Node k's targets are `targets[offsets[k]..offsets[k + 1]]`.
+    offsets: Vec<u32>,
+    targets: Vec<Target>,
+}
+
+impl Directions {
+    /// Shortest paths on the skeleton graph from every node to each importance node
+    /// (Dijkstra, Euclidean edge lengths), the importance points along them with the
+    /// visibility test (eq. 162), and the selection probabilities c_i ∝ f_i / d_skel²
+    /// (eq. 164–165). The distance is floored at the importance node's maximal-ball radius
+    /// (and one voxel), so a point at an importance node does not divide by zero.
+    pub fn build(scene: &Scene, guide: &SkeletonGuide, importance: &[(u32, f64)]) -> Directions {
+        let n = guide.graph.nodes.len();
+        let adjacency = guide.graph.adjacency();
+        let voxel = guide.mapping.grid.spec.voxel;
+        // Per importance node: (node k, importance point, unnormalised c'_i) for every
+        // node that reaches it.
+        let per_target: Vec<Vec<(u32, Vec3, f64)>> = importance
+            .par_iter()
+            .map(|&(target, value)| {
+                let (dist, next) = shortest_paths(guide, &adjacency, target);
+                let floor = guide.graph.nodes[target as usize].radius.max(voxel);
+                (0..n as u32)
+                    .filter(|&k| dist[k as usize].is_finite())
+                    .map(|k| {
+                        let d = dist[k as usize].max(floor);
+                        (k, importance_point(scene, guide, &next, k), value / (d * d))
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut lists: Vec<Vec<(Vec3, f64)>> = vec![Vec::new(); n];
+        for entries in per_target {
+            for (k, point, weight) in entries {
+                lists[k as usize].push((point, weight));
+            }
+        }
+        let mut offsets = Vec::with_capacity(n + 1);
+        let mut targets = Vec::new();
+        offsets.push(0);
+        for list in lists {
+            let total: f64 = list.iter().map(|e| e.1).sum();
+            if total > 0.0 && total.is_finite() {
+                let kept: Vec<(Vec3, f64)> = list.into_iter().filter(|e| (e.1 / total) as f32 >= NEGLIGIBLE).collect();
+                let kept_total: f64 = kept.iter().map(|e| e.1).sum();
+                let mut cumulative = 0.0f64;
+                for (point, weight) in kept {
+                    cumulative += weight / kept_total;
+                    targets.push(Target {
+                        point,
+                        probability: (weight / kept_total) as f32,
+                        cumulative: cumulative as f32,
+                    });
+                }
+                if let Some(last) = targets.last_mut() {
+                    last.cumulative = 1.0;
+                }
+            }
+            offsets.push(targets.len() as u32);
+        }
+        Directions { offsets, targets }
+    }
+
+    /// Node `node`'s targets (empty where no importance node is reached).
+    #[inline]
+    pub fn at(&self, node: u32) -> &[Target] {
+        let k = node as usize;
+        match (self.offsets.get(k), self.offsets.get(k + 1)) {
+            (Some(&a), Some(&b)) => &self.targets[a as usize..b as usize],
+            _ => &[],
+        }
+    }
+
+    /// Memory used, in bytes.
+    pub fn bytes(&self) -> usize {
+        self.offsets.len() * 4 + self.targets.len() * std::mem::size_of::<Target>()
+    }
+
+    /// Targets over all nodes (for reports).
+    pub fn len(&self) -> usize {
+        self.targets.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.targets.is_empty()
+    }
+}
+
+/// Dijkstra from `source` over the skeleton graph: each node's distance to it and the next
+/// node on a shortest path towards it (`u32::MAX` for the source and unreached nodes).
+fn shortest_paths(guide: &SkeletonGuide, adjacency: &[Vec<u32>], source: u32) -> (Vec<f64>, Vec<u32>) {
+    let n = adjacency.len();
+    let mut dist = vec![f64::INFINITY; n];
+    let mut next = vec![u32::MAX; n];
+    let mut heap = BinaryHeap::new();
+    dist[source as usize] = 0.0;
+    heap.push((Reverse(Ordered(0.0)), source));
+    let pos = |k: u32| guide.graph.nodes[k as usize].position;
+    while let Some((Reverse(Ordered(d)), k)) = heap.pop() {
+        if d > dist[k as usize] {
+            continue;
+        }
+        let [x, y, z] = pos(k);
+        for &j in &adjacency[k as usize] {
+            let [a, b, c] = pos(j);
+            let nd = d + ((a - x).powi(2) + (b - y).powi(2) + (c - z).powi(2)).sqrt();
+            if nd < dist[j as usize] {
+                dist[j as usize] = nd;
+                next[j as usize] = k;
+                heap.push((Reverse(Ordered(nd)), j));
+            }
+        }
+    }
+    (dist, next)
+}
+
+/// Eq. 162: the mean position of the longest run of nodes of node `k`'s shortest path that
+/// `k` sees (k itself first).
+fn importance_point(scene: &Scene, guide: &SkeletonGuide, next: &[u32], k: u32) -> Vec3 {
+    let from = guide.position(k);
+    let (mut sum, mut count) = (from, 1.0f32);
+    let mut j = next[k as usize];
+    // A path has at most as many nodes as the graph (guards a corrupted `next`).
+    for _ in 0..next.len() {
+        if j == u32::MAX {
+            break;
+        }
+        let p = guide.position(j);
+        let ray = Ray { o: from, d: p - from, tmax: 1.0 - 1e-4 };
+        if scene.occluded(&ray) {
+            break;
+        }
+        sum += p;
+        count += 1.0;
+        j = next[j as usize];
+    }
+    sum / count
+}
+
+/// f64 ordered for the heap (distances are never NaN).
+#[derive(Clone, Copy, PartialEq, PartialOrd)]
+struct Ordered(f64);
+impl Eq for Ordered {}
+#[allow(clippy::derive_ord_xor_partial_ord)]
+impl Ord for Ordered {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0)
+    }
+}
+
+/// The skeleton importance direction from `x` to `point` (eq. 163's axis); the surface's
+/// normal when the two coincide, so that sampling and density agree on it.
+#[inline]
+fn axis(x: Vec3, point: Vec3, normal: Vec3) -> Vec3 {
+    let d = point - x;
+    let len = d.length();
+    if len > 1e-6 {
+        d / len
+    } else {
+        normal
+    }
+}
+
+/// Eq. 163: the density (s+1)/2π · max(0, cos)^s of a direction `cos` off the axis.
+#[inline]
+pub fn lobe_pdf(strength: f32, cos: f32) -> f32 {
+    if cos <= 0.0 {
+        0.0
+    } else {
+        (strength + 1.0) / (2.0 * PI) * cos.powf(strength)
+    }
+}
+
+/// Samples eq. 163's lobe around `axis`: cosθ = u^(1/(s+1)).
+#[inline]
+pub fn sample_lobe(strength: f32, axis: Vec3, u: Vec2) -> Vec3 {
+    let cos = u.x.powf(1.0 / (strength + 1.0));
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Frame::from_normal(axis).to_world(crate::math::vec3(sin * phi.cos(), sin * phi.sin(), cos))
+}
+
+/// Eq. 167: the mixture over `targets` of their lobes at `x`, evaluated for direction `wo`
+/// (unit, world space).
+#[inline]
+pub fn mixture_pdf(targets: &[Target], strength: f32, x: Vec3, normal: Vec3, wo: Vec3) -> f32 {
+    targets.iter().map(|t| t.probability * lobe_pdf(strength, axis(x, t.point, normal).dot(wo))).sum()
+}
+
+/// Draws a direction from eq. 167's mixture: a target by its probability (`u_pick`), then
+/// a direction in its lobe (`u`).
+#[inline]
+pub fn sample_mixture(targets: &[Target], strength: f32, x: Vec3, normal: Vec3, u_pick: f32, u: Vec2) -> Vec3 {
+    let i = targets.partition_point(|t| t.cumulative <= u_pick).min(targets.len() - 1);
+    sample_lobe(strength, axis(x, targets[i].point, normal), u)
+}

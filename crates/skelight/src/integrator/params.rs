@@ -1,0 +1,228 @@
+//! Typed estimator parameters: what each estimator declares (name, kind, default, range,
+//! one line of doc) and the checked values it is built from. One parser serves the command
+//! line (`--param name=value`), a scene's `<integrator>` properties and the defaults
+//! themselves, so a default that does not parse is caught by a test, not by a user.
+
+use std::fmt;
+
+/// What values a parameter takes.
+#[derive(Clone, Copy, Debug)]
+pub enum ParamKind {
+    /// An integer in `min..=max`.
+    Int { min: i64, max: i64 },
+    /// A finite real in `min..=max`.
+    Float { min: f64, max: f64 },
+    /// `true`/`false` (also `1`/`0`, `yes`/`no`, `on`/`off`).
+    Bool,
+    /// One of these words.
+    Choice(&'static [&'static str]),
+}
+
+/// One parameter an estimator declares.
+#[derive(Clone, Copy, Debug)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub kind: ParamKind,
+    /// Written as a user would write it; parsed by the same code as their values.
+    pub default: &'static str,
+    pub doc: &'static str,
+}
+
+/// A checked parameter value.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamValue {
+    Int(i64),
+    Float(f64),
+    Bool(bool),
+    Choice(&'static str),
+}
+
+impl fmt::Display for ParamValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamValue::Int(v) => write!(f, "{v}"),
+            ParamValue::Float(v) => write!(f, "{v}"),
+            ParamValue::Bool(v) => write!(f, "{v}"),
+            ParamValue::Choice(v) => write!(f, "{v}"),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ParamError {
+    #[error("unknown estimator '{name}'; available: {available}")]
+    UnknownEstimator { name: String, available: String },
+    #[error("{estimator} has no parameter '{name}'; its parameters: {known}")]
+    Unknown { estimator: &'static str, name: String, known: String },
+    #[error("{estimator}'s parameter {name}: {why}")]
+    Invalid { estimator: &'static str, name: &'static str, why: String },
+    #[error("'{0}' is not of the form name=value")]
+    Syntax(String),
+}
+
+impl ParamSpec {
+    /// Parses and range-checks `text` for this parameter.
+    pub fn parse(&self, text: &str) -> Result<ParamValue, String> {
+        let t = text.trim();
+        match self.kind {
+            ParamKind::Int { min, max } => {
+                let v: i64 = t.parse().map_err(|_| format!("'{text}' is not an integer"))?;
+                if !(min..=max).contains(&v) {
+                    return Err(format!("{v} is outside {min}..={max}"));
+                }
+                Ok(ParamValue::Int(v))
+            }
+            ParamKind::Float { min, max } => {
+                let v: f64 = t.parse().map_err(|_| format!("'{text}' is not a number"))?;
+                if !v.is_finite() || v < min || v > max {
+                    return Err(format!("{v} is outside [{min}, {max}]"));
+                }
+                Ok(ParamValue::Float(v))
+            }
+            ParamKind::Bool => match t.to_ascii_lowercase().as_str() {
+                "true" | "1" | "yes" | "on" => Ok(ParamValue::Bool(true)),
+                "false" | "0" | "no" | "off" => Ok(ParamValue::Bool(false)),
+                _ => Err(format!("'{text}' is not true or false")),
+            },
+            ParamKind::Choice(words) => words
+                .iter()
+                .find(|w| **w == t)
+                .map(|w| ParamValue::Choice(w))
+                .ok_or_else(|| format!("'{text}' is not one of {}", words.join(", "))),
+        }
+    }
+
+    /// The range or choices, for help texts.
+    pub fn describe_kind(&self) -> String {
+        match self.kind {
+            ParamKind::Int { min, max } => format!("integer {min}..={max}"),
+            ParamKind::Float { min, max } => format!("number in [{min}, {max}]"),
+            ParamKind::Bool => "true/false".into(),
+            ParamKind::Choice(words) => words.join("|"),
+        }
+    }
+}
+
+/// Every declared parameter of one estimator with its value: the default unless set.
+#[derive(Clone, Debug)]
+pub struct Params {
+    estimator: &'static str,
+    values: Vec<(&'static ParamSpec, ParamValue)>,
+}
+
+impl Params {
+    /// The defaults of `specs`, then `overrides` in order (a later one wins).
+    pub fn new(
+        estimator: &'static str,
+        specs: &'static [ParamSpec],
+        overrides: &[(String, String)],
+    ) -> Result<Params, ParamError> {
+        let mut values = Vec::with_capacity(specs.len());
+        for spec in specs {
+            let v = spec.parse(spec.default).map_err(|why| ParamError::Invalid {
+                estimator,
+                name: spec.name,
+                why: format!("its default {why}"),
+            })?;
+            values.push((spec, v));
+        }
+        let mut params = Params { estimator, values };
+        for (name, text) in overrides {
+            params.set(name, text)?;
+        }
+        Ok(params)
+    }
+
+    /// Sets one parameter from text.
+    pub fn set(&mut self, name: &str, text: &str) -> Result<(), ParamError> {
+        let estimator = self.estimator;
+        let known = || self.values.iter().map(|(s, _)| s.name).collect::<Vec<_>>().join(", ");
+        let Some(slot) = self.values.iter().position(|(s, _)| s.name == name) else {
+            let known = if self.values.is_empty() { "none".to_string() } else { known() };
+            return Err(ParamError::Unknown { estimator, name: name.to_string(), known });
+        };
+        let spec = self.values[slot].0;
+        let v = spec.parse(text).map_err(|why| ParamError::Invalid { estimator, name: spec.name, why })?;
+        self.values[slot].1 = v;
+        Ok(())
+    }
+
+    fn get(&self, name: &str) -> &ParamValue {
+        // Estimators read only the names they declare: a miss is a programming error.
+        &self.values.iter().find(|(s, _)| s.name == name).unwrap_or_else(|| panic!("undeclared parameter {name}")).1
+    }
+
+    pub fn int(&self, name: &str) -> i64 {
+        match self.get(name) {
+            ParamValue::Int(v) => *v,
+            other => panic!("parameter {name} is {other:?}, not an integer"),
+        }
+    }
+
+    pub fn float(&self, name: &str) -> f64 {
+        match self.get(name) {
+            ParamValue::Float(v) => *v,
+            ParamValue::Int(v) => *v as f64,
+            other => panic!("parameter {name} is {other:?}, not a number"),
+        }
+    }
+
+    pub fn bool(&self, name: &str) -> bool {
+        match self.get(name) {
+            ParamValue::Bool(v) => *v,
+            other => panic!("parameter {name} is {other:?}, not a boolean"),
+        }
+    }
+
+    pub fn choice(&self, name: &str) -> &'static str {
+        match self.get(name) {
+            ParamValue::Choice(v) => v,
+            other => panic!("parameter {name} is {other:?}, not a choice"),
+        }
+    }
+
+    /// `name=value` for every parameter, for reports and checkpoint keys.
+    pub fn summary(&self) -> String {
+        self.values.iter().map(|(s, v)| format!("{}={v}", s.name)).collect::<Vec<_>>().join(" ")
+    }
+}
+
+/// Splits `name=value`.
+pub fn parse_assignment(text: &str) -> Result<(String, String), ParamError> {
+    match text.split_once('=') {
+        Some((n, v)) if !n.trim().is_empty() => Ok((n.trim().to_string(), v.trim().to_string())),
+        _ => Err(ParamError::Syntax(text.to_string())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    static SPECS: &[ParamSpec] = &[
+        ParamSpec { name: "n", kind: ParamKind::Int { min: 1, max: 10 }, default: "4", doc: "" },
+        ParamSpec { name: "x", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: "0.5", doc: "" },
+        ParamSpec { name: "on", kind: ParamKind::Bool, default: "false", doc: "" },
+        ParamSpec { name: "h", kind: ParamKind::Choice(&["a", "b"]), default: "a", doc: "" },
+    ];
+
+    #[test]
+    fn defaults_then_overrides() {
+        let p = Params::new("t", SPECS, &[("x".into(), "0.25".into()), ("on".into(), "yes".into())]).unwrap();
+        assert_eq!((p.int("n"), p.float("x"), p.bool("on"), p.choice("h")), (4, 0.25, true, "a"));
+        assert_eq!(p.summary(), "n=4 x=0.25 on=true h=a");
+    }
+
+    #[test]
+    fn bad_values_name_the_parameter() {
+        let bad = |k: &str, v: &str| Params::new("t", SPECS, &[(k.into(), v.into())]).unwrap_err().to_string();
+        assert!(bad("n", "11").contains("parameter n: 11 is outside 1..=10"), "{}", bad("n", "11"));
+        assert!(bad("x", "NaN").contains("outside"));
+        assert!(bad("x", "-0.1").contains("outside [0, 1]"));
+        assert!(bad("on", "maybe").contains("not true or false"));
+        assert!(bad("h", "c").contains("one of a, b"));
+        assert!(bad("zz", "1").contains("no parameter 'zz'; its parameters: n, x, on, h"));
+        assert!(parse_assignment("novalue").is_err());
+        assert_eq!(parse_assignment(" s = 8 ").unwrap(), ("s".into(), "8".into()));
+    }
+}

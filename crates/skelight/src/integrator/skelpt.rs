@@ -1,0 +1,226 @@
+//! `skelpt`: path tracing guided by the curvilinear skeleton of the empty space (thesis
+//! ch. 9, seed 001). Before rendering, the scene's empty space is analysed (ch. 6), the
+//! importance of every skeleton node is estimated from light rays (eq. 171–176) and, for
+//! every node, the importance point towards each importance node along the shortest
+//! skeleton path (eq. 162) and its selection probability (eq. 164–165). At each eye vertex
+//! whose point maps to a node (eq. 151–155), directions are drawn with probability c_skel
+//! from the mixture of cos^s lobes towards those points (eq. 163, 167) and otherwise from
+//! the BSDF, and weighted by the density of the whole mixture (eq. 168–170): unbiased
+//! wherever the BSDF can sample every direction it reflects into. Next-event estimation
+//! and MIS on emitter hits are `pt`'s, against that mixture density.
+//!
+//! Where skeleton sampling cannot help it is not used: at delta and near-specular BSDFs,
+//! at points no node reaches, and everywhere in a scene with no lit node (then the render
+//! is `pt`'s, and the preparation says so).
+
+use std::sync::Arc;
+
+use super::params::{ParamKind, ParamSpec, Params};
+use super::pt::{trace, DirectionGuide, GuidedVertex};
+use super::{Integrator, Preparation, PrepareError, SampleContext};
+use crate::guided::directions::{mixture_pdf, sample_mixture, Directions, Target};
+use crate::guided::importance::{importance_nodes, incident_power};
+use crate::guided::{guide_for, GuideSettings, SkeletonGuide};
+use crate::material::{Bsdf, BsdfModel};
+use crate::math::{vec2, Vec3};
+use crate::sampling::Rng;
+use crate::scene::{Scene, SurfaceInteraction};
+
+/// skelpt's parameters, as the registry offers them.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "strength",
+        kind: ParamKind::Float { min: 0.0, max: 10_000.0 },
+        default: "8",
+        doc: "skeleton strength s: exponent of the cos^s lobe around the importance direction (eq. 163)",
+    },
+    ParamSpec {
+        name: "c_skel",
+        kind: ParamKind::Float { min: 0.0, max: 1.0 },
+        default: "0.5",
+        doc: "probability of drawing a direction from the skeleton rather than the BSDF (eq. 168); 0 is pt",
+    },
+    ParamSpec {
+        name: "resolution",
+        kind: ParamKind::Int { min: 8, max: 1024 },
+        default: "128",
+        doc: "voxels on the longest side of the analysed box (the scene's bounds grown by 10 %)",
+    },
+    ParamSpec {
+        name: "importance_rays",
+        kind: ParamKind::Int { min: 1, max: 1 << 28 },
+        default: "262144",
+        doc: "light rays traced once before rendering to estimate the nodes' importance (eq. 176)",
+    },
+    ParamSpec {
+        name: "importance_nodes",
+        kind: ParamKind::Int { min: 1, max: 4096 },
+        default: "64",
+        doc: "at most this many importance nodes, the brightest",
+    },
+];
+
+/// Seed of the importance estimate's random stream (fixed: the preparation is part of the
+/// estimator, the same for every render seed).
+const IMPORTANCE_SEED: u64 = 0x5ce1_e70f;
+
+pub struct SkeletonPathTracer {
+    pub strength: f32,
+    pub c_skel: f32,
+    pub resolution: usize,
+    pub importance_rays: usize,
+    pub importance_nodes: usize,
+    /// Made by [`Integrator::prepare`].
+    prepared: Option<Prepared>,
+}
+
+/// What sampling reads.
+struct Prepared {
+    guide: Arc<SkeletonGuide>,
+    directions: Directions,
+}
+
+impl SkeletonPathTracer {
+    pub fn from_params(p: &Params) -> SkeletonPathTracer {
+        SkeletonPathTracer {
+            strength: p.float("strength") as f32,
+            c_skel: p.float("c_skel") as f32,
+            resolution: p.int("resolution") as usize,
+            importance_rays: p.int("importance_rays") as usize,
+            importance_nodes: p.int("importance_nodes") as usize,
+            prepared: None,
+        }
+    }
+
+    /// The skeleton data sampling reads (after [`Integrator::prepare`]).
+    pub fn guide(&self) -> Option<(&SkeletonGuide, &Directions)> {
+        self.prepared.as_ref().map(|p| (&*p.guide, &p.directions))
+    }
+}
+
+/// The skeleton's offer at the vertices of a prepared render.
+struct SkeletonGuidance<'a> {
+    guide: &'a SkeletonGuide,
+    directions: &'a Directions,
+    strength: f32,
+    c_skel: f32,
+}
+
+/// Eq. 167's mixture at one vertex.
+pub struct SkeletonVertex<'a> {
+    targets: &'a [Target],
+    strength: f32,
+    c_skel: f32,
+    x: Vec3,
+    normal: Vec3,
+}
+
+impl GuidedVertex for SkeletonVertex<'_> {
+    #[inline]
+    fn selection(&self) -> f32 {
+        self.c_skel
+    }
+    #[inline]
+    fn pdf(&self, wo: Vec3) -> f32 {
+        mixture_pdf(self.targets, self.strength, self.x, self.normal, wo)
+    }
+    #[inline]
+    fn sample(&self, rng: &mut Rng) -> Vec3 {
+        let pick = rng.next_f32();
+        sample_mixture(self.targets, self.strength, self.x, self.normal, pick, rng.next_2d())
+    }
+}
+
+impl<'g> DirectionGuide for SkeletonGuidance<'g> {
+    type Vertex<'a>
+        = SkeletonVertex<'a>
+    where
+        Self: 'a;
+    #[inline]
+    fn at<'a>(&'a self, si: &SurfaceInteraction, bsdf: &Bsdf) -> Option<SkeletonVertex<'a>> {
+        if bsdf.near_specular() || !bsdf.has_smooth() {
+            return None;
+        }
+        let node = self.guide.node_at(si.p, si.ng, si.wi)?;
+        let targets = self.directions.at(node);
+        if targets.is_empty() {
+            return None;
+        }
+        Some(SkeletonVertex { targets, strength: self.strength, c_skel: self.c_skel, x: si.p, normal: si.ng })
+    }
+}
+
+impl Integrator for SkeletonPathTracer {
+    fn name(&self) -> &'static str {
+        "skelpt"
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "skelpt strength={} c_skel={} resolution={} importance_rays={} importance_nodes={}",
+            self.strength, self.c_skel, self.resolution, self.importance_rays, self.importance_nodes
+        )
+    }
+
+    fn prepare(&mut self, scene: &Scene) -> Result<Preparation, PrepareError> {
+        self.prepared = None;
+        let mut prep = Preparation::default();
+        if self.c_skel == 0.0 {
+            prep.notes.push("c_skel = 0: plain path tracing, no analysis".into());
+            return Ok(prep);
+        }
+        if scene.lights.is_empty() {
+            prep.notes.push("the scene has no lights: plain path tracing".into());
+            return Ok(prep);
+        }
+        let clock = std::time::Instant::now();
+        let (guide, cached) = guide_for(scene, &GuideSettings { resolution: self.resolution }).map_err(PrepareError)?;
+        if cached {
+            prep.stages.push(("empty-space analysis (cached)".into(), clock.elapsed().as_secs_f64()));
+        } else {
+            prep.stages.extend(guide.timings.iter().cloned());
+        }
+        let lap = std::time::Instant::now();
+        let values = incident_power(scene, &guide, self.importance_rays, IMPORTANCE_SEED);
+        let importance = importance_nodes(&values, self.importance_nodes);
+        prep.stages.push(("importance from light rays (eq. 176)".into(), lap.elapsed().as_secs_f64()));
+        let lap = std::time::Instant::now();
+        let directions = Directions::build(scene, &guide, &importance);
+        prep.stages.push(("shortest paths and importance points (eq. 162–165)".into(), lap.elapsed().as_secs_f64()));
+        let lit = values.iter().filter(|v| **v > 0.0).count();
+        prep.notes.push(format!(
+            "skeleton: {} nodes, {} edges; {lit} lit, {} importance nodes; {} targets; {:.1} MB kept for sampling",
+            guide.graph.nodes.len(),
+            guide.graph.edges.len(),
+            importance.len(),
+            directions.len(),
+            (guide.bytes + directions.bytes()) as f64 / 1e6
+        ));
+        if importance.is_empty() {
+            prep.notes.push("no light ray reached a skeleton node: plain path tracing".into());
+            return Ok(prep);
+        }
+        self.prepared = Some(Prepared { guide, directions });
+        Ok(prep)
+    }
+
+    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
+        let tile = &mut *cx.tile;
+        let pos = vec2(x as f32, y as f32) + rng.next_2d();
+        let ray = scene.camera.generate_ray(pos, rng.next_2d());
+        let max_depth = scene.settings.max_depth;
+        let l = match &self.prepared {
+            Some(p) => {
+                let g = SkeletonGuidance {
+                    guide: &p.guide,
+                    directions: &p.directions,
+                    strength: self.strength,
+                    c_skel: self.c_skel,
+                };
+                trace(scene, max_depth, ray, rng, &g)
+            }
+            None => trace(scene, max_depth, ray, rng, &super::pt::Unguided),
+        };
+        tile.add(pos, l);
+    }
+}

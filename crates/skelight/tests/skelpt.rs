@@ -1,0 +1,140 @@
+//! `skelpt`'s densities (thesis eq. 163 and 167) against its samplers, on the lobe alone and
+//! at real vertices of a scene where the skeleton offers several importance points in
+//! different directions: the MIS weights of the estimator (eq.
+//! 168–170) are only right if the density it evaluates is the one it samples, summed over
+//! every importance node. Its unbiasedness on whole images is checked by the conformance
+//! suite and by `estimators_agree` on the real scenes.
+
+mod common;
+
+use std::f32::consts::PI;
+
+use skelight::guided::directions::{lobe_pdf, mixture_pdf, sample_lobe, sample_mixture};
+use skelight::integrator::params::Params;
+use skelight::integrator::skelpt::{self, SkeletonPathTracer};
+use skelight::integrator::Integrator;
+use skelight::math::{vec2, vec3, Vec3};
+use skelight::sampling::Rng;
+
+/// Equal-area bins on the sphere: `Z` bands of cosθ times `PHI` sectors.
+const Z: usize = 24;
+const PHI: usize = 48;
+
+fn bin(d: Vec3) -> usize {
+    let z = (((d.z + 1.0) * 0.5 * Z as f32) as usize).min(Z - 1);
+    let phi = d.y.atan2(d.x).rem_euclid(2.0 * PI);
+    let p = ((phi / (2.0 * PI) * PHI as f32) as usize).min(PHI - 1);
+    z * PHI + p
+}
+
+/// ∫ over each bin of `pdf`, by a 12×12 midpoint rule in (cosθ, φ).
+fn bin_integrals(pdf: impl Fn(Vec3) -> f32) -> Vec<f64> {
+    const SUB: usize = 12;
+    let area = 4.0 * std::f64::consts::PI / (Z * PHI) as f64;
+    let mut out = vec![0.0f64; Z * PHI];
+    for (b, value) in out.iter_mut().enumerate() {
+        let (zi, pi) = (b / PHI, b % PHI);
+        let mut sum = 0.0f64;
+        for i in 0..SUB {
+            for j in 0..SUB {
+                let z = -1.0 + 2.0 * (zi as f64 + (i as f64 + 0.5) / SUB as f64) / Z as f64;
+                let phi = 2.0 * std::f64::consts::PI * (pi as f64 + (j as f64 + 0.5) / SUB as f64) / PHI as f64;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                sum += pdf(vec3((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32)) as f64;
+            }
+        }
+        *value = sum / (SUB * SUB) as f64 * area;
+    }
+    out
+}
+
+/// Pearson's χ² of `n` draws against the bins' probabilities (bins expecting fewer than
+/// 20 draws pooled), as a z-score of χ² against its degrees of freedom.
+fn chi_square_z(counts: &[u64], probabilities: &[f64], n: u64) -> f64 {
+    let total: f64 = probabilities.iter().sum();
+    assert!((total - 1.0).abs() < 2e-3, "the density integrates to {total}, not 1");
+    let (mut chi2, mut dof) = (0.0f64, 0usize);
+    let (mut pooled_count, mut pooled_expected) = (0.0f64, 0.0f64);
+    for (&c, &p) in counts.iter().zip(probabilities) {
+        let e = p * n as f64;
+        if e < 20.0 {
+            pooled_count += c as f64;
+            pooled_expected += e;
+            continue;
+        }
+        chi2 += (c as f64 - e).powi(2) / e;
+        dof += 1;
+    }
+    if pooled_expected >= 20.0 {
+        chi2 += (pooled_count - pooled_expected).powi(2) / pooled_expected;
+        dof += 1;
+    } else {
+        assert!(pooled_count < 40.0 + 4.0 * pooled_expected, "{pooled_count} draws where {pooled_expected} expected");
+    }
+    let dof = (dof - 1) as f64;
+    (chi2 - dof) / (2.0 * dof).sqrt()
+}
+
+#[test]
+fn cosine_power_lobe_samples_its_density() {
+    let axis = vec3(0.3, -0.5, 0.8).normalize();
+    for strength in [0.0f32, 1.0, 8.0, 30.0] {
+        let n = 400_000u64;
+        let mut counts = vec![0u64; Z * PHI];
+        let mut rng = Rng::new(1, 2, strength as u64);
+        for _ in 0..n {
+            counts[bin(sample_lobe(strength, axis, rng.next_2d()))] += 1;
+        }
+        let z = chi_square_z(&counts, &bin_integrals(|d| lobe_pdf(strength, axis.dot(d))), n);
+        println!("s = {strength}: χ² z {z:.2}");
+        assert!(z < 5.0, "s = {strength}: χ² z = {z:.2}");
+    }
+}
+
+/// At vertices the camera sees in the two rooms of the default scene (every node lit, so
+/// each has importance points in several directions), directions drawn from eq. 167's
+/// mixture follow the density the estimator evaluates for MIS.
+#[test]
+fn skeleton_mixture_samples_its_density_at_real_vertices() {
+    let mut scene = skelight::scene::builtin::two_rooms();
+    scene.set_resolution(32, 32);
+    let params = Params::new("skelpt", skelpt::PARAMS, &[]).unwrap();
+    let mut skelpt = SkeletonPathTracer::from_params(&params);
+    let prep = skelpt.prepare(&scene).expect("prepare");
+    println!("{}", prep.notes.join("\n"));
+    let (guide, directions) = skelpt.guide().expect("the corridor's skeleton guides skelpt");
+    let strength = 8.0;
+    // The camera's first hits whose targets point in the most different directions (where
+    // reading one target's lobe instead of the sum would show).
+    let mut vertices = Vec::new();
+    for py in 0..32 {
+        for px in 0..32 {
+            let ray = scene.camera.generate_ray(vec2(px as f32 + 0.5, py as f32 + 0.5), vec2(0.5, 0.5));
+            let Some(hit) = scene.intersect(&ray) else { continue };
+            let Some(node) = guide.node_at(hit.p, hit.ng, hit.wi) else { continue };
+            let targets = directions.at(node);
+            let axes: Vec<Vec3> = targets.iter().map(|t| (t.point - hit.p).normalize()).collect();
+            let spread = axes.iter().flat_map(|a| axes.iter().map(move |b| a.dot(*b))).fold(1.0f32, f32::min);
+            vertices.push((spread, hit, node));
+        }
+    }
+    vertices.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut checked = 0;
+    for (i, (spread, hit, node)) in vertices.iter().take(4).enumerate() {
+        let targets = directions.at(*node);
+        let n = 400_000u64;
+        let mut counts = vec![0u64; Z * PHI];
+        let mut rng = Rng::new(3, i as u64, 0);
+        for _ in 0..n {
+            let d = sample_mixture(targets, strength, hit.p, hit.ng, rng.next_f32(), rng.next_2d());
+            counts[bin(d)] += 1;
+        }
+        let p = bin_integrals(|d| mixture_pdf(targets, strength, hit.p, hit.ng, d));
+        let z = chi_square_z(&counts, &p, n);
+        let angle = spread.clamp(-1.0, 1.0).acos().to_degrees();
+        println!("node {node}: {} targets up to {angle:.0}° apart, χ² z {z:.2}", targets.len());
+        assert!(z < 5.0, "node {node}: χ² z = {z:.2}");
+        checked += (angle > 20.0) as usize;
+    }
+    assert!(checked >= 2, "too few vertices whose targets point apart: {checked}");
+}
