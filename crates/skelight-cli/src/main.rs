@@ -292,6 +292,11 @@ struct RenderArgs {
     /// bpt's MIS heuristic: balance or power (as --param heuristic=…).
     #[arg(long, value_parser = parse_heuristic)]
     heuristic: Option<Heuristic>,
+    /// skelpt only: also write pictures of what guides it to DIR: the importance nodes and
+    /// directions over the skeleton (importance_view.png), the node each pixel's first hit
+    /// maps to (node_per_pixel.png), and importance.json.
+    #[arg(long, value_name = "DIR")]
+    debug_skeleton: Option<PathBuf>,
     /// bpt only: also write each (s, t) strategy's weighted contribution to DIR/sS_tT.exr
     /// (and .png, and their means to DIR/strategies.csv). Renders once per strategy with the
     /// same random numbers, so the images add up to the full render.
@@ -650,6 +655,13 @@ fn render(args: RenderArgs) -> Result<()> {
     if job.integrator.name() != "bpt" && (args.heuristic.is_some() || args.debug_strategies.is_some()) {
         bail!("--heuristic and --debug-strategies apply to --integrator bpt");
     }
+    if let Some(dir) = &args.debug_skeleton {
+        if job.integrator.name() != "skelpt" {
+            bail!("--debug-skeleton applies to --integrator skelpt");
+        }
+        let (_, p, _) = integrator::registry::params_for_scene("skelpt", &job.scene.settings, &params)?;
+        write_guidance_pictures(&job.scene, &p, dir)?;
+    }
     let heuristic = args.heuristic.unwrap_or_default();
     let bpt = |only| Box::new(Bpt { max_depth: None, heuristic, only });
     if let Some(dir) = &args.debug_strategies {
@@ -679,6 +691,19 @@ fn render(args: RenderArgs) -> Result<()> {
     let r = job.run(None, args.quiet, |_, _| Ok(()))?;
     let img = write_outputs(&r.film, r.spp, &args.output, args.exposure)?;
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
+    Ok(())
+}
+
+/// Prepares skelpt with `params` for `scene` and writes the pictures of what guides it.
+fn write_guidance_pictures(scene: &Scene, params: &integrator::params::Params, dir: &Path) -> Result<()> {
+    use integrator::Integrator as _;
+    let mut skelpt = integrator::skelpt::SkeletonPathTracer::from_params(params);
+    skelpt.prepare(scene)?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let files = skeleton_pictures::write_guidance(scene, &skelpt, dir)?;
+    for f in files {
+        eprintln!("wrote {}", f.display());
+    }
     Ok(())
 }
 
@@ -886,6 +911,20 @@ fn main() {
             let files = skeleton_pictures::write(&scene, &analysis, &output)?;
             if !quiet {
                 eprintln!("pictures: {}", files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "));
+            }
+            // What would guide skelpt at this resolution (its own anchors: lights and camera).
+            if let Resolution::Longest(n) = resolution {
+                if scene.lights.is_empty() {
+                    eprintln!("no lights: no importance pictures");
+                } else {
+                    let n = n.to_string();
+                    let p = integrator::params::Params::new(
+                        "skelpt",
+                        integrator::skelpt::PARAMS,
+                        &[("resolution".into(), n)],
+                    )?;
+                    write_guidance_pictures(&scene, &p, &output)?;
+                }
             }
             Ok(())
         })(),

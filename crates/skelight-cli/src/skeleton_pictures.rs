@@ -13,6 +13,7 @@ use rayon::prelude::*;
 use skelight::color::{rgb, Rgb};
 use skelight::geometry::Ray;
 use skelight::imageio::Image;
+use skelight::integrator::skelpt::SkeletonPathTracer;
 use skelight::math::{vec2, vec3, Vec3};
 use skelight::scene::{Scene, SurfaceInteraction};
 use skelight_shape::mapping::{surface_voxel, NodeMapping};
@@ -25,13 +26,7 @@ use crate::skeleton::to_f64;
 /// current resolution, into `dir`. Returns the files written.
 pub fn write(scene: &Scene, a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
     let (w, h) = (scene.settings.width, scene.settings.height);
-    let hits: Vec<Option<SurfaceInteraction>> = (0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            scene
-                .intersect(&scene.camera.generate_ray(vec2((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), vec2(0.5, 0.5)))
-        })
-        .collect();
+    let hits = primary_hits(scene);
     let backdrop = false_colours(w, h, &hits, |_| None);
     let mut written = Vec::new();
     let mut save = |name: &str, img: &Image| -> Result<()> {
@@ -54,6 +49,79 @@ pub fn write(scene: &Scene, a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
     });
     save("labels.png", &img)?;
     Ok(written)
+}
+
+/// Pictures of what guides `skelpt` (prepared for `scene`), seen through the camera at its
+/// current resolution, into `dir`: `importance_view.png` (seed 001 Fig. 2: the filtered
+/// skeleton, every importance node as a red dot sized by its share of the importance, and
+/// at every node a segment towards its most likely importance point, red at the node, blue
+/// at the far end, ending in a green dot) and `node_per_pixel.png` (the node each pixel's
+/// first hit maps to, as the sampler sees it), and `importance.json`.
+pub fn write_guidance(scene: &Scene, skelpt: &SkeletonPathTracer, dir: &Path) -> Result<Vec<PathBuf>> {
+    let Some((guide, directions)) = skelpt.guide() else {
+        anyhow::bail!("skelpt found no lit skeleton node in this scene: nothing guides it");
+    };
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    let hits = primary_hits(scene);
+    let backdrop = false_colours(w, h, &hits, |_| None);
+    let mut img = with_skeleton(scene, &backdrop, &guide.graph);
+    let cam = scene.camera.position;
+    let project = |q: Vec3| scene.camera.raster_of(cam, (q - cam).normalize());
+    for (k, _) in guide.graph.nodes.iter().enumerate() {
+        let Some(best) = directions.at(k as u32).iter().max_by(|a, b| a.probability.total_cmp(&b.probability)) else {
+            continue;
+        };
+        let from = guide.position(k as u32);
+        // A segment a quarter of the way to the importance point, at most two node radii.
+        let reach = (guide.graph.nodes[k].radius as f32 * 2.0).max(1e-3);
+        let d = best.point - from;
+        let to = from + d * (reach / d.length().max(1e-6)).min(1.0);
+        for step in 0..=64 {
+            let f = step as f32 / 64.0;
+            if let Some(r) = project(from + (to - from) * f) {
+                dot(&mut img, r.x, r.y, 1.0, rgb(1.0 - f, 0.1, f));
+            }
+        }
+        if let Some(r) = project(to) {
+            dot(&mut img, r.x, r.y, 1.8, rgb(0.1, 1.0, 0.1));
+        }
+    }
+    let total: f64 = skelpt.importance().iter().map(|i| i.1).sum();
+    let mut json = String::from("{\"importance_nodes\": [");
+    for (i, &(node, value)) in skelpt.importance().iter().enumerate() {
+        let p = guide.position(node);
+        if let Some(r) = project(p) {
+            dot(&mut img, r.x, r.y, 2.0 + 6.0 * (value / total.max(1e-30)).sqrt() as f32, rgb(1.0, 0.05, 0.05));
+        }
+        let sep = if i == 0 { "" } else { "," };
+        json +=
+            &format!("{sep}\n  {{\"node\": {node}, \"position\": [{}, {}, {}], \"value\": {value}}}", p.x, p.y, p.z);
+    }
+    json += "\n]}\n";
+    let mut written = Vec::new();
+    let path = dir.join("importance_view.png");
+    img.save_png(&path, 0.0).with_context(|| format!("writing {}", path.display()))?;
+    written.push(path);
+    let nodes = false_colours(w, h, &hits, |si| guide.node_at(si.p, si.ng, si.wi));
+    let path = dir.join("node_per_pixel.png");
+    nodes.save_png(&path, 0.0).with_context(|| format!("writing {}", path.display()))?;
+    written.push(path);
+    let path = dir.join("importance.json");
+    crate::write_text(&path, &json)?;
+    written.push(path);
+    Ok(written)
+}
+
+/// The first hit of a ray through every pixel's centre.
+fn primary_hits(scene: &Scene) -> Vec<Option<SurfaceInteraction>> {
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            scene
+                .intersect(&scene.camera.generate_ray(vec2((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), vec2(0.5, 0.5)))
+        })
+        .collect()
 }
 
 /// Surface points of the primary hits coloured by the label `label_of` gives them, shaded by

@@ -30,6 +30,10 @@ pub trait DirectionGuide: Sync {
 
 /// The guide's distribution at one vertex.
 pub trait GuidedVertex {
+    /// Which part of the guide this is (a skeleton node), for learning from paths.
+    fn key(&self) -> u32 {
+        0
+    }
     /// The probability c of drawing from the guide rather than from the BSDF (in (0, 1]).
     fn selection(&self) -> f32;
     /// Solid-angle density of world direction `wo`.
@@ -78,12 +82,48 @@ fn mixture_pdf<V: GuidedVertex>(guide: Option<&V>, bsdf_pdf: f32, wo: Vec3) -> f
 }
 
 /// A direction drawn at a vertex: where, its weight f·|cos|/p, its density p (for a delta
-/// lobe, the probability of having picked it) and whether it is a delta direction.
+/// lobe, the probability of having picked it) and whether it is a delta direction, with
+/// f·|cos| and the BSDF's own density of it (for learning guides).
 struct Drawn {
     wo: Vec3,
     weight: Rgb,
     pdf: f32,
     delta: bool,
+    value: Rgb,
+    bsdf_pdf: f32,
+}
+
+/// One non-delta direction taken at a guided vertex, with what is needed to tell, once the
+/// path is finished, how much light came back along it (for guides that learn).
+#[derive(Clone, Copy, Debug)]
+pub struct GuidedStep {
+    /// [`GuidedVertex::key`].
+    pub key: u32,
+    pub x: Vec3,
+    pub normal: Vec3,
+    pub wo: Vec3,
+    /// f·|cos| towards `wo`.
+    pub value: Rgb,
+    pub bsdf_pdf: f32,
+    /// The mixture density it was drawn with.
+    pub pdf: f32,
+    /// The path's radiance before anything found beyond this vertex was added.
+    pub radiance_before: Rgb,
+    /// The path throughput up to and including this direction's weight.
+    pub beta_after: Rgb,
+}
+
+impl GuidedStep {
+    /// f·|cos|·L along `wo` (luminance), L being the radiance the rest of the path brought
+    /// back along it, given the path's final radiance `total`.
+    pub fn integrand(&self, total: Rgb) -> f32 {
+        let l = total - self.radiance_before;
+        let per = |c: f32, b: f32, v: f32| if b > 0.0 { c / b * v } else { 0.0 };
+        let r = per(l.r, self.beta_after.r, self.value.r);
+        let g = per(l.g, self.beta_after.g, self.value.g);
+        let b = per(l.b, self.beta_after.b, self.value.b);
+        crate::color::rgb(r, g, b).luminance()
+    }
 }
 
 /// Draws the next direction at `si` from the mixture of the guide (probability c) and the
@@ -103,25 +143,27 @@ fn draw<V: GuidedVertex>(
         let wo = g.sample(rng);
         let local = si.frame.to_local(wo);
         let f = bsdf.eval(ctx, wi, local);
-        let pdf = mixture_pdf(guide, bsdf.pdf(ctx, wi, local), wo);
+        let bsdf_pdf = bsdf.pdf(ctx, wi, local);
+        let pdf = mixture_pdf(guide, bsdf_pdf, wo);
         if f.is_black() || !(pdf > 0.0) {
             return None;
         }
-        return Some(Drawn { wo, weight: f / pdf, pdf, delta: false });
+        return Some(Drawn { wo, weight: f / pdf, pdf, delta: false, value: f, bsdf_pdf });
     }
     let u = rng.next_f32();
     let u2 = rng.next_2d();
     let bs = bsdf.sample(ctx, wi, u, u2)?;
     let wo = si.frame.to_world(bs.wo);
+    let (value, bsdf_pdf) = (bs.weight * bs.pdf, bs.pdf);
     match guide {
-        None => Some(Drawn { wo, weight: bs.weight, pdf: bs.pdf, delta: bs.delta }),
+        None => Some(Drawn { wo, weight: bs.weight, pdf: bs.pdf, delta: bs.delta, value, bsdf_pdf }),
         Some(g) if bs.delta => {
             let keep = 1.0 - g.selection();
-            Some(Drawn { wo, weight: bs.weight / keep, pdf: bs.pdf * keep, delta: true })
+            Some(Drawn { wo, weight: bs.weight / keep, pdf: bs.pdf * keep, delta: true, value, bsdf_pdf })
         }
         Some(_) => {
             let pdf = mixture_pdf(guide, bs.pdf, wo);
-            Some(Drawn { wo, weight: bs.weight * (bs.pdf / pdf), pdf, delta: false })
+            Some(Drawn { wo, weight: bs.weight * (bs.pdf / pdf), pdf, delta: false, value, bsdf_pdf })
         }
     }
 }
@@ -135,13 +177,21 @@ pub struct PathTracer {
 impl PathTracer {
     /// Radiance arriving along `ray`.
     pub fn li(&self, scene: &Scene, ray: Ray, rng: &mut Rng) -> Rgb {
-        trace(scene, self.max_depth.unwrap_or(scene.settings.max_depth), ray, rng, &Unguided)
+        trace(scene, self.max_depth.unwrap_or(scene.settings.max_depth), ray, rng, &Unguided, None)
     }
 }
 
 /// Radiance arriving along `ray` by paths of at most `max_depth` segments, with directions
-/// drawn from BSDF sampling mixed with `guide`'s distribution where it offers one.
-pub fn trace<G: DirectionGuide>(scene: &Scene, max_depth: i32, mut ray: Ray, rng: &mut Rng, guide: &G) -> Rgb {
+/// drawn from BSDF sampling mixed with `guide`'s distribution where it offers one. With
+/// `steps`, every non-delta direction drawn at a guided vertex is recorded there.
+pub fn trace<G: DirectionGuide>(
+    scene: &Scene,
+    max_depth: i32,
+    mut ray: Ray,
+    rng: &mut Rng,
+    guide: &G,
+    mut steps: Option<&mut Vec<GuidedStep>>,
+) -> Rgb {
     let rr_depth = scene.settings.rr_depth as i32;
     let mut l = Rgb::BLACK;
     let mut beta = Rgb::WHITE;
@@ -219,6 +269,19 @@ pub fn trace<G: DirectionGuide>(scene: &Scene, max_depth: i32, mut ray: Ray, rng
         beta *= next.weight;
         if beta.is_black() || !beta.is_finite() {
             break;
+        }
+        if let (Some(steps), Some(g), false) = (steps.as_deref_mut(), here.as_ref(), next.delta) {
+            steps.push(GuidedStep {
+                key: g.key(),
+                x: si.p,
+                normal: si.ng,
+                wo: next.wo,
+                value: next.value,
+                bsdf_pdf: next.bsdf_pdf,
+                pdf: next.pdf,
+                radiance_before: l,
+                beta_after: beta,
+            });
         }
         prev_delta = next.delta;
         prev_pdf = next.pdf;

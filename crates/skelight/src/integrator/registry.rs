@@ -95,6 +95,16 @@ pub fn create_for_scene(
     settings: &crate::scene::RenderSettings,
     params: &[(String, String)],
 ) -> Result<(Box<dyn Integrator>, Vec<String>), ParamError> {
+    let (e, p, warnings) = params_for_scene(name, settings, params)?;
+    Ok(((e.create)(&p), warnings))
+}
+
+/// The estimator and the parameters [`create_for_scene`] builds it from.
+pub fn params_for_scene(
+    name: &str,
+    settings: &crate::scene::RenderSettings,
+    params: &[(String, String)],
+) -> Result<(&'static Estimator, Params, Vec<String>), ParamError> {
     let e = find(name)?;
     let mut p = Params::new(e.name, e.params, &[])?;
     let mut warnings = Vec::new();
@@ -110,7 +120,7 @@ pub fn create_for_scene(
     for (k, v) in params {
         p.set(k, v)?;
     }
-    Ok(((e.create)(&p), warnings))
+    Ok((e, p, warnings))
 }
 
 /// Parses an estimator written with its parameters, `name:param=value:param=value` (as

@@ -16,8 +16,8 @@
 use std::sync::Arc;
 
 use super::params::{ParamKind, ParamSpec, Params};
-use super::pt::{trace, DirectionGuide, GuidedVertex};
-use super::{Integrator, Preparation, PrepareError, SampleContext};
+use super::pt::{trace, DirectionGuide, GuidedStep, GuidedVertex};
+use super::{Integrator, Preparation, PrepareError, SampleContext, Scratch};
 use crate::guided::directions::{mixture_pdf, sample_mixture, Directions, Target};
 use crate::guided::importance::{importance_nodes, incident_power};
 use crate::guided::{guide_for, GuideSettings, SkeletonGuide};
@@ -58,7 +58,52 @@ pub const PARAMS: &[ParamSpec] = &[
         default: "64",
         doc: "at most this many importance nodes, the brightest",
     },
+    ParamSpec {
+        name: "adaptive",
+        kind: ParamKind::Bool,
+        default: "false",
+        doc: "learn strength and c_skel per node from earlier passes (fixed within a pass, so unbiased)",
+    },
 ];
+
+/// The adaptive mode's candidate strengths and selection probabilities; every pairing is a
+/// candidate. c = 0 (BSDF sampling alone) lets a node turn guidance off where it hurts.
+const STRENGTHS: [f32; 4] = [1.0, 4.0, 16.0, 64.0];
+const SELECTIONS: [f32; 4] = [0.0, 0.25, 0.5, 0.75];
+const CANDIDATES: usize = STRENGTHS.len() * SELECTIONS.len();
+/// Directions a node must have seen before its own choice replaces the defaults.
+const MIN_OBSERVATIONS: u32 = 64;
+
+/// Per node, the estimated second moment of the one-sample estimator under every
+/// candidate, ∫ h²/p_θ ≈ mean of h²/(p_θ·p_used) over directions drawn with p_used (h =
+/// f·|cos|·L), and how many directions it rests on.
+#[derive(Clone, Default)]
+struct Moments {
+    sums: Vec<[f64; CANDIDATES]>,
+    counts: Vec<u32>,
+}
+
+impl Moments {
+    fn new(nodes: usize) -> Moments {
+        Moments { sums: vec![[0.0; CANDIDATES]; nodes], counts: vec![0; nodes] }
+    }
+    fn add(&mut self, other: &Moments) {
+        for (a, b) in self.sums.iter_mut().zip(&other.sums) {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x += y;
+            }
+        }
+        for (a, b) in self.counts.iter_mut().zip(&other.counts) {
+            *a += b;
+        }
+    }
+}
+
+/// A tile's learning memory: its moments and one path's guided steps.
+struct Learning {
+    moments: Moments,
+    steps: Vec<GuidedStep>,
+}
 
 /// Seed of the importance estimate's random stream (fixed: the preparation is part of the
 /// estimator, the same for every render seed).
@@ -70,6 +115,7 @@ pub struct SkeletonPathTracer {
     pub resolution: usize,
     pub importance_rays: usize,
     pub importance_nodes: usize,
+    pub adaptive: bool,
     /// Made by [`Integrator::prepare`].
     prepared: Option<Prepared>,
 }
@@ -78,6 +124,12 @@ pub struct SkeletonPathTracer {
 struct Prepared {
     guide: Arc<SkeletonGuide>,
     directions: Directions,
+    /// The importance nodes and their values (for pictures and reports).
+    importance: Vec<(u32, f64)>,
+    /// Per node, the strength and c_skel of the current pass.
+    node_params: Vec<(f32, f32)>,
+    /// What the adaptive mode has observed so far.
+    moments: Moments,
 }
 
 impl SkeletonPathTracer {
@@ -88,6 +140,7 @@ impl SkeletonPathTracer {
             resolution: p.int("resolution") as usize,
             importance_rays: p.int("importance_rays") as usize,
             importance_nodes: p.int("importance_nodes") as usize,
+            adaptive: p.bool("adaptive"),
             prepared: None,
         }
     }
@@ -96,18 +149,30 @@ impl SkeletonPathTracer {
     pub fn guide(&self) -> Option<(&SkeletonGuide, &Directions)> {
         self.prepared.as_ref().map(|p| (&*p.guide, &p.directions))
     }
+
+    /// The importance nodes and their values, brightest first (after a prepare that found
+    /// any).
+    pub fn importance(&self) -> &[(u32, f64)] {
+        self.prepared.as_ref().map_or(&[], |p| &p.importance)
+    }
+
+    /// Per node, the strength and c_skel the next pass uses (the adaptive mode's choices).
+    pub fn node_params(&self) -> &[(f32, f32)] {
+        self.prepared.as_ref().map_or(&[], |p| &p.node_params)
+    }
 }
 
 /// The skeleton's offer at the vertices of a prepared render.
 struct SkeletonGuidance<'a> {
     guide: &'a SkeletonGuide,
     directions: &'a Directions,
-    strength: f32,
-    c_skel: f32,
+    /// Strength and c_skel per node.
+    node_params: &'a [(f32, f32)],
 }
 
 /// Eq. 167's mixture at one vertex.
 pub struct SkeletonVertex<'a> {
+    node: u32,
     targets: &'a [Target],
     strength: f32,
     c_skel: f32,
@@ -116,6 +181,10 @@ pub struct SkeletonVertex<'a> {
 }
 
 impl GuidedVertex for SkeletonVertex<'_> {
+    #[inline]
+    fn key(&self) -> u32 {
+        self.node
+    }
     #[inline]
     fn selection(&self) -> f32 {
         self.c_skel
@@ -143,10 +212,11 @@ impl<'g> DirectionGuide for SkeletonGuidance<'g> {
         }
         let node = self.guide.node_at(si.p, si.ng, si.wi)?;
         let targets = self.directions.at(node);
-        if targets.is_empty() {
+        let (strength, c_skel) = self.node_params[node as usize];
+        if targets.is_empty() || c_skel <= 0.0 {
             return None;
         }
-        Some(SkeletonVertex { targets, strength: self.strength, c_skel: self.c_skel, x: si.p, normal: si.ng })
+        Some(SkeletonVertex { node, targets, strength, c_skel, x: si.p, normal: si.ng })
     }
 }
 
@@ -157,8 +227,8 @@ impl Integrator for SkeletonPathTracer {
 
     fn describe(&self) -> String {
         format!(
-            "skelpt strength={} c_skel={} resolution={} importance_rays={} importance_nodes={}",
-            self.strength, self.c_skel, self.resolution, self.importance_rays, self.importance_nodes
+            "skelpt strength={} c_skel={} resolution={} importance_rays={} importance_nodes={} adaptive={}",
+            self.strength, self.c_skel, self.resolution, self.importance_rays, self.importance_nodes, self.adaptive
         )
     }
 
@@ -200,27 +270,82 @@ impl Integrator for SkeletonPathTracer {
             prep.notes.push("no light ray reached a skeleton node: plain path tracing".into());
             return Ok(prep);
         }
-        self.prepared = Some(Prepared { guide, directions });
+        let nodes = guide.graph.nodes.len();
+        self.prepared = Some(Prepared {
+            guide,
+            directions,
+            importance,
+            node_params: vec![(self.strength, self.c_skel); nodes],
+            moments: Moments::new(if self.adaptive { nodes } else { 0 }),
+        });
         Ok(prep)
     }
 
+    fn new_scratch(&self) -> Scratch {
+        match &self.prepared {
+            Some(p) if self.adaptive => {
+                Scratch::new(Learning { moments: Moments::new(p.node_params.len()), steps: Vec::new() })
+            }
+            _ => Scratch::none(),
+        }
+    }
+
     fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
-        let tile = &mut *cx.tile;
         let pos = vec2(x as f32, y as f32) + rng.next_2d();
         let ray = scene.camera.generate_ray(pos, rng.next_2d());
         let max_depth = scene.settings.max_depth;
         let l = match &self.prepared {
             Some(p) => {
-                let g = SkeletonGuidance {
-                    guide: &p.guide,
-                    directions: &p.directions,
-                    strength: self.strength,
-                    c_skel: self.c_skel,
-                };
-                trace(scene, max_depth, ray, rng, &g)
+                let g = SkeletonGuidance { guide: &p.guide, directions: &p.directions, node_params: &p.node_params };
+                if self.adaptive {
+                    let learning = cx.scratch.get::<Learning>();
+                    learning.steps.clear();
+                    let l = trace(scene, max_depth, ray, rng, &g, Some(&mut learning.steps));
+                    observe(&p.directions, l, learning);
+                    l
+                } else {
+                    trace(scene, max_depth, ray, rng, &g, None)
+                }
             }
-            None => trace(scene, max_depth, ray, rng, &super::pt::Unguided),
+            None => trace(scene, max_depth, ray, rng, &super::pt::Unguided, None),
         };
-        tile.add(pos, l);
+        cx.tile.add(pos, l);
+    }
+
+    fn finish_pass(&mut self, _scene: &Scene, scratches: &mut [Scratch]) {
+        let Some(p) = self.prepared.as_mut().filter(|_| self.adaptive) else { return };
+        for s in scratches.iter_mut() {
+            p.moments.add(&s.get::<Learning>().moments);
+        }
+        for (node, params) in p.node_params.iter_mut().enumerate() {
+            if p.moments.counts[node] < MIN_OBSERVATIONS {
+                continue;
+            }
+            let sums = &p.moments.sums[node];
+            let best = (0..CANDIDATES).min_by(|&a, &b| sums[a].total_cmp(&sums[b])).unwrap_or(0);
+            *params = (STRENGTHS[best / SELECTIONS.len()], SELECTIONS[best % SELECTIONS.len()]);
+        }
+    }
+}
+
+/// Adds one finished path's guided steps to the moments of every candidate (see
+/// [`Moments`]): `total` is the path's radiance.
+fn observe(directions: &Directions, total: crate::color::Rgb, learning: &mut Learning) {
+    for step in &learning.steps {
+        let h = step.integrand(total) as f64;
+        let node = step.key as usize;
+        let targets = directions.at(step.key);
+        learning.moments.counts[node] += 1;
+        if h == 0.0 || !h.is_finite() {
+            continue;
+        }
+        let sums = &mut learning.moments.sums[node];
+        for (i, &s) in STRENGTHS.iter().enumerate() {
+            let skel = mixture_pdf(targets, s, step.x, step.normal, step.wo);
+            for (j, &c) in SELECTIONS.iter().enumerate() {
+                let p = ((1.0 - c) * step.bsdf_pdf + c * skel) as f64;
+                sums[i * SELECTIONS.len() + j] += if p > 0.0 { h * h / (p * step.pdf as f64) } else { f64::INFINITY };
+            }
+        }
     }
 }
