@@ -138,3 +138,39 @@ fn skeleton_mixture_samples_its_density_at_real_vertices() {
     }
     assert!(checked >= 2, "too few vertices whose targets point apart: {checked}");
 }
+
+/// Absurd parameters and scenes skelpt cannot use: a clear error, or `pt`'s image with a
+/// note saying why, never a panic or a non-finite pixel.
+#[test]
+fn skelpt_refuses_absurd_parameters_and_falls_back_where_it_cannot_guide() {
+    use skelight::integrator::{registry, render, RenderOptions};
+    for (name, value, expected) in [
+        ("strength", "-1", "outside"),
+        ("c_skel", "1.5", "outside [0, 0.99]"),
+        ("c_skel", "1", "outside [0, 0.99]"),
+        ("c_skel", "NaN", "outside"),
+        ("resolution", "100000", "outside"),
+    ] {
+        let err = registry::create("skelpt", &[(name.into(), value.into())]).err().expect("refused").to_string();
+        assert!(err.contains(name) && err.contains(expected), "{name}={value}: {err}");
+    }
+    // A grid too large for memory: refused by the analysis with a message, before rendering.
+    let mut scene = skelight::scene::builtin::two_rooms();
+    scene.set_resolution(8, 8);
+    let opts = RenderOptions { spp: Some(1), time: None, seed: 0, threads: 0 };
+    let mut huge = registry::create("skelpt", &[("resolution".into(), "1024".into())]).unwrap();
+    let err = render(&scene, huge.as_mut(), &opts, None, |_, _| true).err().expect("refused").to_string();
+    assert!(err.contains("preparing skelpt") && err.contains("analysis"), "{err}");
+    // No lights: pt's (black) image, and the preparation says so.
+    let dark = common::edited_conformance_scene(
+        "c01_cbox_area",
+        |t| t.replace(r#"<emitter type="area"><rgb name="radiance" value="18.4, 14.0, 6.75"/></emitter>"#, ""),
+        16,
+        16,
+    );
+    assert!(dark.lights.is_empty());
+    let mut skelpt = registry::create("skelpt", &[]).unwrap();
+    let r = render(&dark, skelpt.as_mut(), &opts, None, |_, _| true).expect("renders");
+    assert!(r.preparation.notes.iter().any(|n| n.contains("no lights")), "{:?}", r.preparation.notes);
+    assert!(r.film.image().pixels.iter().all(|p| p.is_finite() && p.is_black()));
+}

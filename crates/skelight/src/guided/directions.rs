@@ -15,7 +15,7 @@ use crate::geometry::Ray;
 use crate::math::{Frame, Vec2, Vec3};
 use crate::scene::Scene;
 
-/// Selection probabilities below this share of a node's total are dropped (and the rest
+/// Targets whose c'_i is below this share of the node's largest are dropped (and the rest
 /// renormalised): they would cost a lobe evaluation in every density for nothing.
 const NEGLIGIBLE: f32 = 1e-3;
 
@@ -74,21 +74,18 @@ impl Directions {
         let mut targets = Vec::new();
         offsets.push(0);
         for list in lists {
-            let total: f64 = list.iter().map(|e| e.1).sum();
-            if total > 0.0 && total.is_finite() {
-                let kept: Vec<(Vec3, f64)> = list.into_iter().filter(|e| (e.1 / total) as f32 >= NEGLIGIBLE).collect();
-                let kept_total: f64 = kept.iter().map(|e| e.1).sum();
-                let mut cumulative = 0.0f64;
-                for (point, weight) in kept {
-                    cumulative += weight / kept_total;
-                    targets.push(Target {
-                        point,
-                        probability: (weight / kept_total) as f32,
-                        cumulative: cumulative as f32,
-                    });
-                }
-                if let Some(last) = targets.last_mut() {
-                    last.cumulative = 1.0;
+            // Targets far below the node's largest are dropped; the rest renormalised.
+            let largest = list.iter().map(|e| e.1).fold(0.0f64, f64::max);
+            if largest > 0.0 && largest.is_finite() {
+                let kept: Vec<(Vec3, f64)> = list.into_iter().filter(|e| e.1 >= NEGLIGIBLE as f64 * largest).collect();
+                let total: f64 = kept.iter().map(|e| e.1).sum();
+                let (mut before, mut cumulative) = (0.0f32, 0.0f64);
+                for (i, &(point, weight)) in kept.iter().enumerate() {
+                    cumulative += weight / total;
+                    let upto = if i + 1 == kept.len() { 1.0 } else { cumulative as f32 };
+                    // The probability is the step the sampler takes, so the two agree exactly.
+                    targets.push(Target { point, probability: upto - before, cumulative: upto });
+                    before = upto;
                 }
             }
             offsets.push(targets.len() as u32);

@@ -36,9 +36,10 @@ pub const PARAMS: &[ParamSpec] = &[
     },
     ParamSpec {
         name: "c_skel",
-        kind: ParamKind::Float { min: 0.0, max: 1.0 },
+        kind: ParamKind::Float { min: 0.0, max: 0.99 },
         default: "0.5",
-        doc: "probability of drawing a direction from the skeleton rather than the BSDF (eq. 168); 0 is pt",
+        doc: "probability of drawing a direction from the skeleton rather than the BSDF (eq. 168); 0 is pt; \
+              below 1, or directions no lobe reaches and delta lobes would never be drawn (a bias)",
     },
     ParamSpec {
         name: "resolution",
@@ -72,7 +73,7 @@ const STRENGTHS: [f32; 4] = [1.0, 4.0, 16.0, 64.0];
 const SELECTIONS: [f32; 4] = [0.0, 0.25, 0.5, 0.75];
 const CANDIDATES: usize = STRENGTHS.len() * SELECTIONS.len();
 /// Directions a node must have seen before its own choice replaces the defaults.
-const MIN_OBSERVATIONS: u32 = 64;
+const MIN_OBSERVATIONS: u64 = 64;
 
 /// Per node, the estimated second moment of the one-sample estimator under every
 /// candidate, ∫ h²/p_θ ≈ mean of h²/(p_θ·p_used) over directions drawn with p_used (h =
@@ -80,7 +81,7 @@ const MIN_OBSERVATIONS: u32 = 64;
 #[derive(Clone, Default)]
 struct Moments {
     sums: Vec<[f64; CANDIDATES]>,
-    counts: Vec<u32>,
+    counts: Vec<u64>,
 }
 
 impl Moments {
@@ -94,7 +95,7 @@ impl Moments {
             }
         }
         for (a, b) in self.counts.iter_mut().zip(&other.counts) {
-            *a += b;
+            *a = a.saturating_add(*b);
         }
     }
 }
@@ -207,7 +208,8 @@ impl<'g> DirectionGuide for SkeletonGuidance<'g> {
         Self: 'a;
     #[inline]
     fn at<'a>(&'a self, si: &SurfaceInteraction, bsdf: &Bsdf) -> Option<SkeletonVertex<'a>> {
-        if bsdf.near_specular() || !bsdf.has_smooth() {
+        let side = bsdf.facing(si.frame.to_local(si.wi));
+        if side.near_specular() || !side.has_smooth() {
             return None;
         }
         let node = self.guide.node_at(si.p, si.ng, si.wi)?;

@@ -211,6 +211,21 @@ impl Bsdf {
         }
     }
 
+    /// The BSDF that answers light arriving from local direction `wi` (a two-sided
+    /// material's back for `wi` below the surface, as `eval`, `pdf` and `sample` choose).
+    pub fn facing(&self, wi: Vec3) -> &Bsdf {
+        match self {
+            Bsdf::TwoSided(f, b) => {
+                if wi.z >= 0.0 {
+                    f.facing(wi)
+                } else {
+                    b.facing(flip(wi))
+                }
+            }
+            _ => self,
+        }
+    }
+
     /// Whether every reflection is concentrated in a narrow cone around a mirror direction
     /// (a delta lobe, or microfacets with roughness below 0.1, Phong exponents above 100):
     /// sampling any other distribution there wastes its samples.
