@@ -26,6 +26,8 @@ pub struct Series {
     pub name: String,
     pub points: Vec<Point>,
     pub image: Image,
+    /// Seconds of the estimator's preparation (part of its time budget).
+    pub preparation: f64,
 }
 
 pub struct Study {
@@ -85,7 +87,7 @@ pub fn run(
         if points.last().is_none_or(|p| p.spp != r.spp) {
             points.push(Point { iteration: points.len(), spp: r.spp, seconds: r.elapsed.as_secs_f64(), metrics });
         }
-        out.push(Series { name: label, points, image });
+        out.push(Series { name: label, points, image, preparation: r.preparation.elapsed.as_secs_f64() });
     }
     Ok(out)
 }
@@ -449,11 +451,11 @@ pub fn write_report(study: &Study, reference: &Image, dir: &Path) -> Result<()> 
     let _ = write!(html, "<h1>Equal-time comparison</h1><p>Scene <code>{}</code>, reference <code>{}</code>, {:.1} s per estimator, error measured every {}, seed {}, {} threads.<br>Machine: {}. skelight {} (git {}).</p>", study.scene_label, study.reference_label, study.time.as_secs_f64(), if study.every.is_zero() { "pass".to_string() } else { format!("{:.1} s", study.every.as_secs_f64()) }, study.seed, if study.threads == 0 { "all".into() } else { study.threads.to_string() }, machine(), env!("CARGO_PKG_VERSION"), option_env!("SKELIGHT_GIT_REV").unwrap_or("unknown"));
     html.push_str("<h2>Error against time</h2>");
     html.push_str(&svg);
-    html.push_str("<h2>Final errors</h2><table><tr><th>estimator</th><th>spp</th><th>seconds</th><th>MAE</th><th>RMSE</th><th>relMSE</th><th>NRMSE</th></tr>");
+    html.push_str("<h2>Final errors</h2><table><tr><th>estimator</th><th>spp</th><th>seconds</th><th>of which preparation</th><th>MAE</th><th>RMSE</th><th>relMSE</th><th>NRMSE</th></tr>");
     for s in &study.series {
         if let Some(p) = s.points.last() {
             let m = &p.metrics;
-            let _ = write!(html, "<tr><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.4e}</td><td>{:.4e}</td><td>{:.4e}</td><td>{:.4e}</td></tr>", s.name, p.spp, p.seconds, m.mae, m.rmse, m.relmse, m.nrmse);
+            let _ = write!(html, "<tr><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.4e}</td><td>{:.4e}</td><td>{:.4e}</td><td>{:.4e}</td></tr>", s.name, p.spp, p.seconds, s.preparation, m.mae, m.rmse, m.relmse, m.nrmse);
         }
     }
     html.push_str(

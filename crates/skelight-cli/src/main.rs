@@ -788,8 +788,8 @@ fn compare_cmd(a: CompareArgs) -> Result<()> {
     for s in &study.series {
         if let Some(p) = s.points.last() {
             eprintln!(
-                "{}: {} spp in {:.2} s, relMSE {:.4e}, RMSE {:.4e}",
-                s.name, p.spp, p.seconds, p.metrics.relmse, p.metrics.rmse
+                "{}: {} spp in {:.2} s ({:.2} s preparation), relMSE {:.4e}, RMSE {:.4e}",
+                s.name, p.spp, p.seconds, s.preparation, p.metrics.relmse, p.metrics.rmse
             );
         }
     }

@@ -199,7 +199,19 @@ pub fn lobe_pdf(strength: f32, cos: f32) -> f32 {
     if cos <= 0.0 {
         0.0
     } else {
-        (strength + 1.0) / (2.0 * PI) * cos.powf(strength)
+        (strength + 1.0) / (2.0 * PI) * cos_power(cos, strength)
+    }
+}
+
+/// cos^s, by repeated squaring for whole strengths (the usual ones, and every candidate
+/// of the adaptive mode): the density is evaluated at every vertex for every target
+/// (veach-door, 160×90: skelpt 0.40–0.43 Msamples/s against 0.35–0.38 with `powf`; pt 0.67).
+#[inline]
+fn cos_power(cos: f32, strength: f32) -> f32 {
+    if strength == strength.trunc() && strength <= 1024.0 {
+        cos.powi(strength as i32)
+    } else {
+        cos.powf(strength)
     }
 }
 
