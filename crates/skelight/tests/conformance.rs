@@ -7,7 +7,7 @@ use std::path::Path;
 
 use common::*;
 use skelight::imageio::Image;
-use skelight::integrator::{by_name, Integrator};
+use skelight::integrator::Integrator;
 use skelight::scene::load::load;
 
 const SPP: u32 = 128;
@@ -94,7 +94,8 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
     let dir = shared_dir().join("conformance");
     let entries = manifest(&dir);
     assert!(entries.len() >= 18, "expected the conformance manifest to list scenes");
-    let mut integrator = by_name(integrator_name).expect("integrator");
+    let (name, params) = skelight::integrator::registry::parse_spec(integrator_name).expect("estimator");
+    let mut integrator = skelight::integrator::registry::create(&name, &params).expect("estimator");
     let mut failures = Vec::new();
     let mut tested = 0;
     // SKELIGHT_CONFORMANCE=c08,c11 restricts a run to scenes whose names start so.
@@ -223,9 +224,16 @@ fn ibpt_matches_mitsuba_on_every_conformance_scene() {
     run_conformance("ibpt", 18);
 }
 
+/// skelpt's default learns its strength and c_skel per node pass after pass...
 #[test]
 fn skelpt_matches_mitsuba_on_every_conformance_scene() {
     run_conformance("skelpt", 18);
+}
+
+/// ... and with them fixed (the thesis's form).
+#[test]
+fn skelpt_with_fixed_parameters_matches_mitsuba_on_every_conformance_scene() {
+    run_conformance("skelpt:adaptive=false", 18);
 }
 
 /// The estimators the tests above check: every one the registry offers must be among them.

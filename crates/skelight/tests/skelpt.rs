@@ -174,3 +174,27 @@ fn skelpt_refuses_absurd_parameters_and_falls_back_where_it_cannot_guide() {
     assert!(r.preparation.notes.iter().any(|n| n.contains("no lights")), "{:?}", r.preparation.notes);
     assert!(r.film.image().pixels.iter().all(|p| p.is_finite() && p.is_black()));
 }
+
+/// A Mitsuba scene's `<integrator type="skelpt">` properties reach skelpt (not another
+/// estimator); the command line's parameters win over them.
+#[test]
+fn scene_integrator_properties_set_skelpt_parameters() {
+    use skelight::integrator::registry::create_for_scene;
+    let scene = common::edited_conformance_scene(
+        "c01_cbox_area",
+        |t| {
+            t.replace(
+                r#"<integrator type="path"><integer name="max_depth" value="8"/></integrator>"#,
+                r#"<integrator type="skelpt"><integer name="max_depth" value="8"/><float name="strength" value="3"/><float name="c_skel" value="0.2"/></integrator>"#,
+            )
+        },
+        8,
+        8,
+    );
+    assert_eq!(scene.settings.max_depth, 8);
+    let (skelpt, warnings) = create_for_scene("skelpt", &scene.settings, &[("c_skel".into(), "0.4".into())]).unwrap();
+    assert!(skelpt.describe().contains("strength=3 c_skel=0.4"), "{}", skelpt.describe());
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let (pt, warnings) = create_for_scene("pt", &scene.settings, &[]).unwrap();
+    assert_eq!((pt.name(), warnings.len()), ("pt", 0));
+}

@@ -62,7 +62,7 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "adaptive",
         kind: ParamKind::Bool,
-        default: "false",
+        default: "true",
         doc: "learn strength and c_skel per node from earlier passes (fixed within a pass, so unbiased)",
     },
 ];
