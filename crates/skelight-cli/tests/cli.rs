@@ -465,3 +465,41 @@ fn merge_and_diff_refuse_impossible_and_non_finite_inputs() {
     }
     run_ok(&["merge", &s(&ok), &s(&ok), "-o", &out]);
 }
+
+/// The registry reaches the command line: `render --help` lists skelpt's parameters,
+/// `--param` sets them, bad ones fail with a message naming the parameter, the preparation is
+/// reported, and `--debug-skeleton` writes the guidance pictures.
+#[test]
+fn estimator_parameters_from_the_command_line() {
+    let help = run_ok(&["render", "--help"]);
+    assert!(help.contains("skelpt") && help.contains("c_skel") && help.contains("adaptive"), "{help}");
+    for (param, expected) in
+        [("strength=-2", "strength"), ("nonsense=1", "no parameter 'nonsense'"), ("novalue", "name=value")]
+    {
+        let out = bin().args(["render", "-i", "skelpt", "--param", param, "--spp", "1"]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(expected) && !err.contains("panicked"), "{param}: {err}");
+    }
+    let d = tmp("skelpt");
+    let (dbg, img) = (d.join("dbg"), d.join("img.exr"));
+    let text = run_ok(&[
+        "render",
+        "-i",
+        "skelpt",
+        "--param",
+        "strength=4",
+        "--spp",
+        "1",
+        "--resolution",
+        "32",
+        "24",
+        "--debug-skeleton",
+        dbg.to_str().unwrap(),
+        "-o",
+        img.to_str().unwrap(),
+    ]);
+    assert!(text.contains("preparation:") && text.contains("strength=4"), "{text}");
+    for f in ["importance_view.png", "node_per_pixel.png", "importance.json"] {
+        assert!(dbg.join(f).exists(), "{f} missing");
+    }
+}
