@@ -33,6 +33,7 @@ fn every_real_scene_loads_and_renders() {
         shared.join("corridor/vence_couloirS2.obj"),
         repo_scene("corridor-raw.toml"),
         repo_scene("sibenik-two-lights.toml"),
+        repo_scene("door-corner.toml"),
     ];
     let mut pt = by_name("pt").unwrap();
     for path in scenes {
@@ -204,4 +205,26 @@ fn estimators_agree_on_veach_door() {
 fn estimators_agree_on_sibenik() {
     let scene = load_small(&repo_scene("sibenik-two-lights.toml"), 48, 32);
     estimators_agree(&scene, &[("pt", 128), ("bpt", 32), ("skelpt", 128)]);
+}
+
+/// `raw_textures` reads a texture's bytes as linear reflectances, as the pg2015 authors'
+/// renderer did (scenes/door-corner.toml): its textured diffuse materials (picture, door,
+/// marble, table; the checker is pure black and white) are brighter read raw than decoded as
+/// sRGB, as byte/255 is above its sRGB decoding for every mid-tone.
+#[test]
+fn raw_textures_are_read_as_linear_values() {
+    let path = repo_scene("door-corner.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let decoded = path.with_file_name("door-corner-srgb-test.toml");
+    std::fs::write(&decoded, text.replace("raw_textures = true\n", "")).unwrap();
+    let albedos = |p: &Path| {
+        let scene = load(p, &[]).unwrap_or_else(|e| panic!("{e}"));
+        scene.materials.iter().map(|m| m.bsdf.mean_albedo()).collect::<Vec<f32>>()
+    };
+    let (raw, srgb) = (albedos(&path), albedos(&decoded));
+    std::fs::remove_file(&decoded).ok();
+    println!("mean albedos, raw {raw:?}\n             sRGB {srgb:?}");
+    assert!(raw.iter().zip(&srgb).all(|(r, s)| r >= s), "a material darker read raw");
+    let brighter = raw.iter().zip(&srgb).filter(|(r, s)| **r > **s + 0.05).count();
+    assert_eq!(brighter, 4, "materials brighter read raw");
 }

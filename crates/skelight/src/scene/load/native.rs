@@ -9,7 +9,8 @@
 //! [camera]     # origin, target, up, fov, fov_axis, aperture_radius, focus_distance
 //! [[mesh]]     # file, face_normals, transform = { translate, scale, rotate = [x, y, z, degrees] }
 //! [mesh.materials.NAME]  # type = "diffuse" | "phong" | "mirror" | "glass", color, texture,
-//!                        # specular, specular_texture, exponent, ior, two_sided
+//!                        # specular, specular_texture, exponent, ior, two_sided,
+//!                        # raw_textures (stored values are linear, not sRGB; nearest lookup)
 //! [[light]]    # type = "disk" | "quad" | "sphere" | "point" | "spot" | "directional" | "constant"
 //! ```
 
@@ -126,6 +127,10 @@ struct MaterialSection {
     /// Shade both sides alike (real meshes often have inconsistent winding).
     #[serde(default)]
     two_sided: bool,
+    /// The textures' bytes are linear reflectances (byte / 255), looked up nearest-neighbour,
+    /// as some renderers read them (the pg2015 authors' Bonez), rather than sRGB, bilinearly.
+    #[serde(default)]
+    raw_textures: bool,
 }
 
 #[derive(Deserialize)]
@@ -149,7 +154,8 @@ struct LightSection {
 struct Ctx<'a> {
     path: &'a Path,
     dir: PathBuf,
-    bitmaps: HashMap<PathBuf, Arc<Bitmap>>,
+    /// Decoded bitmaps by path and whether they are raw.
+    bitmaps: HashMap<(PathBuf, bool), Arc<Bitmap>>,
 }
 
 impl Ctx<'_> {
@@ -157,13 +163,19 @@ impl Ctx<'_> {
         LoadError::at(self.path, 0, msg.into())
     }
     fn bitmap(&mut self, base: &Path, name: &str) -> Result<Texture, LoadError> {
-        let p = base.join(name);
-        if let Some(b) = self.bitmaps.get(&p) {
+        self.bitmap_as(base, name, false)
+    }
+
+    /// `raw`: linear values, nearest lookup (see `raw_textures`); otherwise sRGB, bilinear.
+    fn bitmap_as(&mut self, base: &Path, name: &str, raw: bool) -> Result<Texture, LoadError> {
+        let key = (base.join(name), raw);
+        if let Some(b) = self.bitmaps.get(&key) {
             return Ok(Texture::Bitmap { bitmap: b.clone(), to_uv: UvTransform::IDENTITY });
         }
-        let img = Image::load(&p).map_err(|e| self.err(e.to_string()))?;
-        let b = Arc::new(Bitmap::new(img, true, TexFilter::Bilinear));
-        self.bitmaps.insert(p, b.clone());
+        let img = Image::load(&key.0).map_err(|e| self.err(e.to_string()))?;
+        let filter = if raw { TexFilter::Nearest } else { TexFilter::Bilinear };
+        let b = Arc::new(Bitmap::new(img, !raw, filter));
+        self.bitmaps.insert(key, b.clone());
         Ok(Texture::Bitmap { bitmap: b, to_uv: UvTransform::IDENTITY })
     }
 }
@@ -296,14 +308,14 @@ fn mtl_material(
 fn override_material(ctx: &mut Ctx, name: &str, o: &MaterialSection) -> Result<Material, LoadError> {
     let dir = ctx.dir.clone();
     let color = match &o.texture {
-        Some(f) => ctx.bitmap(&dir, f)?,
+        Some(f) => ctx.bitmap_as(&dir, f, o.raw_textures)?,
         None => Texture::Constant(o.color.map(Color::rgb).unwrap_or(Rgb::splat(0.5))),
     };
     let bsdf = match o.kind.as_str() {
         "diffuse" => Bsdf::Diffuse(Diffuse { reflectance: color }),
         "phong" => {
             let spec = match &o.specular_texture {
-                Some(f) => ctx.bitmap(&dir, f)?,
+                Some(f) => ctx.bitmap_as(&dir, f, o.raw_textures)?,
                 None => Texture::Constant(o.specular.map(Color::rgb).unwrap_or(Rgb::splat(0.2))),
             };
             Bsdf::Phong(Phong::new(color, spec, o.exponent.unwrap_or(30.0)))
