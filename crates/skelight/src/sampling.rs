@@ -64,6 +64,32 @@ pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
     cos_theta.max(0.0) * INV_PI
 }
 
+/// A cos^n lobe around +z: cosθ = u^(1/(n+1)). Phong's specular lobe, and skelpt's lobe
+/// around the skeleton importance direction (thesis eq. 163).
+#[inline]
+pub fn power_cosine(u: Vec2, exponent: f32) -> Vec3 {
+    let cos = u.x.powf(1.0 / (exponent + 1.0));
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let phi = 2.0 * std::f32::consts::PI * u.y;
+    vec3(sin * phi.cos(), sin * phi.sin(), cos)
+}
+
+/// [`power_cosine`]'s density, (n+1)/2π · max(0, cos)^n; cos^n by repeated squaring for
+/// whole exponents (skelpt evaluates it for every target at every vertex: on veach-door,
+/// 160×90, skelpt 0.40–0.43 Msamples/s against 0.35–0.38 with `powf`).
+#[inline]
+pub fn power_cosine_pdf(cos_theta: f32, exponent: f32) -> f32 {
+    if cos_theta <= 0.0 {
+        return 0.0;
+    }
+    let power = if exponent == exponent.trunc() && exponent <= 1024.0 {
+        cos_theta.powi(exponent as i32)
+    } else {
+        cos_theta.powf(exponent)
+    };
+    (exponent + 1.0) / (2.0 * std::f32::consts::PI) * power
+}
+
 /// Uniform point on the unit disk (Shirley–Chiu concentric mapping).
 #[inline]
 pub fn concentric_disk(u: Vec2) -> Vec2 {

@@ -2,7 +2,8 @@
 
 use super::{glossy_diffuse_pdf, sample_glossy_diffuse, BsdfCtx, BsdfModel, BsdfSample};
 use crate::color::Rgb;
-use crate::math::{vec3, Frame, Vec2, Vec3, INV_2PI, INV_PI, PI};
+use crate::math::{vec3, Frame, Vec2, Vec3, INV_2PI, INV_PI};
+use crate::sampling::{power_cosine, power_cosine_pdf};
 use crate::texture::Texture;
 
 #[derive(Clone, Debug)]
@@ -21,13 +22,7 @@ impl Phong {
         Phong { diffuse, specular, exponent, specular_weight }
     }
     fn lobe_pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        let r = vec3(-wi.x, -wi.y, wi.z);
-        let c = r.dot(wo);
-        if c <= 0.0 {
-            0.0
-        } else {
-            (self.exponent + 1.0) * INV_2PI * c.powf(self.exponent)
-        }
+        power_cosine_pdf(vec3(-wi.x, -wi.y, wi.z).dot(wo), self.exponent)
     }
 }
 
@@ -49,11 +44,7 @@ impl BsdfModel for Phong {
     }
     fn sample(&self, ctx: &BsdfCtx, wi: Vec3, u: f32, u2: Vec2) -> Option<BsdfSample> {
         sample_glossy_diffuse(self, ctx, wi, (u, u2), self.specular_weight, |u2| {
-            let cos_a = u2.x.powf(1.0 / (self.exponent + 1.0));
-            let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
-            let phi = 2.0 * PI * u2.y;
-            let lobe = Frame::from_normal(vec3(-wi.x, -wi.y, wi.z));
-            lobe.to_world(vec3(sin_a * phi.cos(), sin_a * phi.sin(), cos_a))
+            Frame::from_normal(vec3(-wi.x, -wi.y, wi.z)).to_world(power_cosine(u2, self.exponent))
         })
     }
 }
