@@ -219,3 +219,33 @@ fn dot(img: &mut Image, x: f32, y: f32, radius: f32, c: Rgb) {
         }
     }
 }
+
+/// `nodes_view.png` in `dir`: the filtered skeleton seen through the camera, with every
+/// node skelbpt built resampling tables for in its last pass as a red dot sized by the
+/// share of eye vertices mapped to it (thesis §11.4), and the nodes reached but not
+/// accepted as small grey dots. Returns the file written.
+pub fn write_node_use(
+    scene: &Scene,
+    guide: &skelight::guided::SkeletonGuide,
+    accepted: &[u32],
+    mapped: &[u64],
+    dir: &Path,
+) -> Result<PathBuf> {
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    let backdrop = false_colours(w, h, &primary_hits(scene), |_| None);
+    let mut img = with_skeleton(scene, &backdrop, &guide.graph);
+    let cam = scene.camera.position;
+    let total = mapped.iter().sum::<u64>().max(1) as f32;
+    for (node, &count) in mapped.iter().enumerate() {
+        let Some(r) = scene.camera.raster_of(cam, (guide.position(node as u32) - cam).normalize()) else { continue };
+        if accepted.contains(&(node as u32)) {
+            dot(&mut img, r.x, r.y, 2.0 + 10.0 * (count as f32 / total).sqrt(), rgb(1.0, 0.05, 0.05));
+        } else if count > 0 {
+            dot(&mut img, r.x, r.y, 1.5, rgb(0.6, 0.6, 0.6));
+        }
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let path = dir.join("nodes_view.png");
+    img.save_png(&path, 0.0).with_context(|| format!("writing {}", path.display()))?;
+    Ok(path)
+}

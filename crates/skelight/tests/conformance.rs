@@ -236,8 +236,16 @@ fn skelpt_with_fixed_parameters_matches_mitsuba_on_every_conformance_scene() {
     run_conformance("skelpt:adaptive=false", 18);
 }
 
+/// skelbpt resamples bpt's connections from tables at skeleton nodes; at the conformance
+/// scenes' 128×128 there are 16 384 light sub-paths per iteration, 1024 of them candidates,
+/// as in the seeds.
+#[test]
+fn skelbpt_matches_mitsuba_on_every_conformance_scene() {
+    run_conformance("skelbpt", 18);
+}
+
 /// The estimators the tests above check: every one the registry offers must be among them.
-const CHECKED: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt"];
+const CHECKED: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt", "skelbpt"];
 
 #[test]
 fn every_registered_estimator_has_a_conformance_test() {

@@ -2,7 +2,7 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use common::*;
 use skelight::imageio::Image;
@@ -10,16 +10,6 @@ use skelight::integrator::by_name;
 use skelight::math::Vec3;
 use skelight::scene::load::load;
 use skelight::scene::Scene;
-
-fn repo_scene(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name)
-}
-
-fn load_small(path: &Path, w: usize, h: usize) -> Scene {
-    let mut s = load(path, &[]).unwrap_or_else(|e| panic!("{e}"));
-    s.set_resolution(w, h);
-    s
-}
 
 #[test]
 fn every_real_scene_loads_and_renders() {

@@ -109,6 +109,23 @@ pub fn guide_for(scene: &Scene, settings: &GuideSettings) -> Result<(Arc<Skeleto
     Ok((guide, false))
 }
 
+/// [`guide_for`] as an estimator's preparation step: the analysis's stages (or the cache
+/// hit) recorded in `prep`.
+pub fn prepare_guide(
+    scene: &Scene,
+    settings: &GuideSettings,
+    prep: &mut crate::integrator::Preparation,
+) -> Result<Arc<SkeletonGuide>, crate::integrator::PrepareError> {
+    let clock = Instant::now();
+    let (guide, cached) = guide_for(scene, settings).map_err(crate::integrator::PrepareError)?;
+    if cached {
+        prep.stages.push(("empty-space analysis (cached)".into(), clock.elapsed().as_secs_f64()));
+    } else {
+        prep.stages.extend(guide.timings.iter().cloned());
+    }
+    Ok(guide)
+}
+
 /// A hash of everything the analysis reads: the triangles and the settings.
 fn cache_key(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();

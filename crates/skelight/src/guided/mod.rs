@@ -8,5 +8,6 @@
 pub mod analysis;
 pub mod directions;
 pub mod importance;
+pub mod resampling;
 
 pub use analysis::{guide_for, GuideSettings, SkeletonGuide};

@@ -3,7 +3,7 @@
 //! its pixel's light sub-path by every (s, t) strategy, weighted by exact MIS (balance
 //! heuristic by default, power on request).
 
-use super::mis::{running_sums, AllStrategies, Heuristic, PathWeight};
+use super::mis::{running_sums, AllStrategies, Heuristic};
 use super::strategies;
 use super::subpath::camera_subpath;
 use super::vertex::Vertex;
@@ -19,82 +19,140 @@ pub struct Bpt {
     /// Overrides the scene's `max_depth` when set.
     pub max_depth: Option<i32>,
     pub heuristic: Heuristic,
-    /// Records only this (s, t) strategy's weighted contribution (for `--debug-strategies`).
-    pub only: Option<(usize, usize)>,
+    /// Which strategies' weighted contributions it records (one alone for
+    /// `--debug-strategies`).
+    pub only: Recorded,
+}
+
+/// Which of its strategies an estimator records; the others are still sampled, with the
+/// same random numbers, so that images of each add up to the full render.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Recorded {
+    #[default]
+    All,
+    /// This (s, t) strategy alone.
+    Strategy(usize, usize),
+    /// None of them (an estimator that adds strategies of its own records those alone).
+    Nothing,
 }
 
 /// A tile's buffers for one pixel sample: its camera sub-path and the MIS running sums
 /// of both sub-paths.
 #[derive(Default)]
-struct PixelScratch {
+pub struct PixelScratch {
     camera: Vec<Vertex>,
     camera_sums: Vec<f32>,
     light_sums: Vec<f32>,
 }
 
+/// A pixel sample's two sub-paths with their MIS running sums, as joins read them.
+pub struct PixelPaths<'a> {
+    /// The pixel's own light sub-path.
+    pub light: &'a [Vertex],
+    pub light_sums: &'a [f32],
+    pub camera: &'a [Vertex],
+    pub camera_sums: &'a [f32],
+}
+
 impl Bpt {
-    fn max_depth(&self, scene: &Scene) -> i32 {
+    pub fn max_depth(&self, scene: &Scene) -> i32 {
         self.max_depth.unwrap_or(scene.settings.max_depth)
     }
 
-    fn records(&self, s: usize, t: usize) -> bool {
-        self.only.is_none_or(|o| o == (s, t))
+    pub fn records(&self, s: usize, t: usize) -> bool {
+        match self.only {
+            Recorded::All => true,
+            Recorded::Strategy(a, b) => (a, b) == (s, t),
+            Recorded::Nothing => false,
+        }
     }
 
-    /// Every strategy the path length allows, for the pixel's camera sub-path, weighted by
-    /// `w`.
+    /// One camera sample of pixel (`x`, `y`), joined by every strategy the path length
+    /// allows, weighted by exact MIS: those that need no stored light vertex past the light
+    /// itself here, with the pixel's light sub-path of `it`, and the joins of camera vertex
+    /// t ≥ 2 with stored light vertices s ≥ 2 by `joins(paths, t, rng)` (the pixel's own
+    /// light sub-path in `bpt`, resampled ones in `skelbpt`).
     #[allow(clippy::too_many_arguments)]
-    pub fn sample_strategies(
+    pub fn sample_pixel(
         &self,
         scene: &Scene,
-        light: &[Vertex],
-        lens_hits: &[super::vertex::LensHit],
-        camera: &[Vertex],
+        (x, y): (usize, usize),
         rng: &mut Rng,
+        it: &Iteration,
+        buffers: &mut PixelScratch,
         tile: &mut FilmTile,
-        w: &impl PathWeight,
-    ) -> Rgb {
-        let max_depth = self.max_depth(scene);
-        let fits = |s: usize, t: usize| max_depth < 0 || s + t <= max_depth as usize + 1;
+        joins: &mut impl FnMut(&PixelPaths, usize, &mut Rng) -> Rgb,
+    ) {
+        let pixel = y * scene.settings.width + x;
+        let (light, hits) = if pixel < it.light_paths.len() {
+            (it.light_paths.path(pixel), it.light_paths.lens_hits(pixel))
+        } else {
+            (&[][..], &[][..])
+        };
+        let pos = vec2(x as f32, y as f32) + rng.next_2d();
+        let PixelScratch { camera, camera_sums, light_sums } = buffers;
+        camera_subpath(scene, pos, rng, self.max_depth(scene), camera);
+        running_sums(scene, camera, self.heuristic, camera_sums);
+        running_sums(scene, light, self.heuristic, light_sums);
+        let paths = PixelPaths { light, light_sums, camera, camera_sums };
+        let w = AllStrategies { heuristic: self.heuristic, light_sums, camera_sums };
         let mut l = Rgb::BLACK;
         for t in 1..=camera.len() {
-            if t >= 2 && fits(0, t) && self.records(0, t) {
-                l += strategies::camera_hits_light(scene, camera, t, w);
+            if t >= 2 && self.fits(scene, 0, t) && self.records(0, t) {
+                l += strategies::camera_hits_light(scene, camera, t, &w);
             }
-            if t >= 2 && fits(1, t) {
+            if t >= 2 && self.fits(scene, 1, t) {
                 // Drawn even when not recorded, so the random numbers of one strategy do
                 // not depend on which others are recorded.
-                let c = strategies::connect_to_light(scene, camera, t, rng, w);
+                let c = strategies::connect_to_light(scene, camera, t, rng, &w);
                 if self.records(1, t) {
                     l += c;
                 }
             }
             if t == 1 {
                 for s in 1..=light.len() {
-                    if !fits(s, 1) {
+                    if !self.fits(scene, s, 1) {
                         break;
                     }
-                    if let Some((raster, c)) = strategies::connect_to_camera(scene, light, s, rng, w) {
+                    if let Some((raster, c)) = strategies::connect_to_camera(scene, light, s, rng, &w) {
                         if self.records(s, 1) {
                             tile.splat(raster, c);
                         }
                     }
                 }
             } else {
-                for s in 2..=light.len() {
-                    if !fits(s, t) {
-                        break;
-                    }
-                    if self.records(s, t) {
-                        l += strategies::connect_vertices(scene, light, s, camera, t, w);
-                    }
-                }
+                l += joins(&paths, t, rng);
             }
         }
-        for hit in lens_hits {
+        for hit in hits {
             let s = hit.light_vertices as usize + 1;
-            if fits(s, 0) && self.records(s, 0) {
-                tile.splat(hit.raster, strategies::light_hits_lens(scene, light, hit, w));
+            if self.fits(scene, s, 0) && self.records(s, 0) {
+                tile.splat(hit.raster, strategies::light_hits_lens(scene, light, hit, &w));
+            }
+        }
+        tile.add(pos, l);
+    }
+
+    /// Whether paths made by strategy (s, t) are within the depth limit.
+    #[inline]
+    pub fn fits(&self, scene: &Scene, s: usize, t: usize) -> bool {
+        let max_depth = self.max_depth(scene);
+        max_depth < 0 || s + t <= max_depth as usize + 1
+    }
+
+    /// `bpt`'s joins of camera vertex t with every vertex s ≥ 2 of the pixel's own light
+    /// sub-path.
+    pub fn own_path_joins(&self, scene: &Scene, paths: &PixelPaths, t: usize) -> Rgb {
+        let (light, camera) = (paths.light, paths.camera);
+        let w =
+            AllStrategies { heuristic: self.heuristic, light_sums: paths.light_sums, camera_sums: paths.camera_sums };
+        let mut l = Rgb::BLACK;
+        for s in 2..=light.len() {
+            if !self.fits(scene, s, t) {
+                break;
+            }
+            if self.records(s, t) {
+                l += strategies::connect_vertices(scene, light, s, camera, t, &w);
             }
         }
         l
@@ -119,20 +177,8 @@ impl Integrator for Bpt {
         Scratch::new(PixelScratch::default())
     }
     fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
-        let (it, scratch, tile) = (cx.iteration, &mut *cx.scratch, &mut *cx.tile);
-        let pixel = y * scene.settings.width + x;
-        let (light, hits) = if pixel < it.light_paths.len() {
-            (it.light_paths.path(pixel), it.light_paths.lens_hits(pixel))
-        } else {
-            (&[][..], &[][..])
-        };
-        let pos = vec2(x as f32, y as f32) + rng.next_2d();
-        let PixelScratch { camera, camera_sums, light_sums } = scratch.get::<PixelScratch>();
-        camera_subpath(scene, pos, rng, self.max_depth(scene), camera);
-        running_sums(scene, camera, self.heuristic, camera_sums);
-        running_sums(scene, light, self.heuristic, light_sums);
-        let w = AllStrategies { heuristic: self.heuristic, light_sums, camera_sums };
-        let l = self.sample_strategies(scene, light, hits, camera, rng, tile, &w);
-        tile.add(pos, l);
+        let mut joins = |paths: &PixelPaths, t: usize, _: &mut Rng| self.own_path_joins(scene, paths, t);
+        let buffers = cx.scratch.get::<PixelScratch>();
+        self.sample_pixel(scene, (x, y), rng, cx.iteration, buffers, cx.tile, &mut joins);
     }
 }

@@ -11,6 +11,7 @@ pub mod mis;
 pub mod params;
 pub mod pt;
 pub mod registry;
+pub mod skelbpt;
 pub mod skelpt;
 pub mod strategies;
 pub mod subpath;
@@ -70,6 +71,16 @@ pub trait Integrator: Sync + Send {
     fn describe(&self) -> String {
         self.name().to_string()
     }
+    /// Facts about the render so far worth a line in its report (the cost of per-iteration
+    /// work, what was learnt); empty for most estimators.
+    fn report(&self) -> Vec<String> {
+        Vec::new()
+    }
+    /// The estimator as its own type, for tools that picture its internals (skelbpt's
+    /// nodes); `None` for those that offer none.
+    fn as_any(&self) -> Option<&dyn Any> {
+        None
+    }
 }
 
 /// What one camera sample writes to and may use besides the scene and its random numbers.
@@ -119,6 +130,24 @@ pub struct PrepareError(pub String);
 pub struct Iteration {
     /// One light sub-path per pixel (empty for estimators that need none).
     pub light_paths: subpath::LightPaths,
+    /// Whatever else the estimator shares between the iteration's pixels (skelbpt's
+    /// resampling distributions), of its own type.
+    extra: Option<Box<dyn Any + Send + Sync>>,
+}
+
+impl Iteration {
+    /// The light sub-paths and the estimator's own shared state, made with `T::default()`
+    /// the first time (kept from iteration to iteration, so its buffers are reused).
+    pub fn with_extra<T: Any + Send + Sync + Default>(&mut self) -> (&subpath::LightPaths, &mut T) {
+        if !self.extra.as_ref().is_some_and(|e| e.is::<T>()) {
+            self.extra = Some(Box::new(T::default()));
+        }
+        (&self.light_paths, self.extra.as_mut().and_then(|e| e.downcast_mut()).expect("just made"))
+    }
+    /// The state [`Iteration::with_extra`] made, if it made one of this type.
+    pub fn extra<T: Any>(&self) -> Option<&T> {
+        self.extra.as_ref().and_then(|e| e.downcast_ref())
+    }
 }
 
 /// When to stop and how to run.

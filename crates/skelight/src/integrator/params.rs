@@ -28,6 +28,23 @@ pub struct ParamSpec {
     pub doc: &'static str,
 }
 
+/// The voxel resolution of the empty-space analysis, as every skeleton-guided estimator
+/// takes it.
+pub const SKELETON_RESOLUTION: ParamSpec = ParamSpec {
+    name: "resolution",
+    kind: ParamKind::Int { min: 8, max: 1024 },
+    default: "128",
+    doc: "voxels on the longest side of the analysed box (the scene's bounds grown by 10 %)",
+};
+
+/// The MIS heuristic between bidirectional strategies (`bpt` and the estimators built on it).
+pub const MIS_HEURISTIC: ParamSpec = ParamSpec {
+    name: "heuristic",
+    kind: ParamKind::Choice(&["balance", "power"]),
+    default: "balance",
+    doc: "MIS heuristic between the (s, t) strategies",
+};
+
 /// A checked parameter value.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ParamValue {

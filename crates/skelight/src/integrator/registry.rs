@@ -3,8 +3,8 @@
 //! dictionary). The command line, a scene's `<integrator>` properties, `--help` and the
 //! tests all read it, so adding an estimator here is all it takes to offer it everywhere.
 
-use super::params::{ParamError, ParamKind, ParamSpec, Params};
-use super::{bpt, ibpt, lt, pt, skelpt, Integrator};
+use super::params::{ParamError, ParamSpec, Params};
+use super::{bpt, ibpt, lt, pt, skelbpt, skelpt, Integrator};
 
 /// One estimator as the registry offers it.
 pub struct Estimator {
@@ -44,15 +44,10 @@ pub static ESTIMATORS: &[Estimator] = &[
         name: "bpt",
         aliases: &["bdpt"],
         doc: "bidirectional path tracing, every (s, t) strategy, exact MIS",
-        params: &[ParamSpec {
-            name: "heuristic",
-            kind: ParamKind::Choice(&["balance", "power"]),
-            default: "balance",
-            doc: "MIS heuristic",
-        }],
+        params: &[super::params::MIS_HEURISTIC],
         create: |p| {
             let heuristic = super::mis::Heuristic::parse(p.choice("heuristic")).unwrap_or_default();
-            Box::new(bpt::Bpt { max_depth: None, heuristic, only: None })
+            Box::new(bpt::Bpt { max_depth: None, heuristic, only: bpt::Recorded::All })
         },
     },
     Estimator {
@@ -68,6 +63,14 @@ pub static ESTIMATORS: &[Estimator] = &[
         doc: "path tracing guided by the skeleton of the empty space towards lit places (thesis ch. 9)",
         params: skelpt::PARAMS,
         create: |p| Box::new(skelpt::SkeletonPathTracer::from_params(p)),
+    },
+    Estimator {
+        name: "skelbpt",
+        aliases: &[],
+        doc:
+            "bpt whose connections resample light vertices with distributions cached at skeleton nodes (thesis ch. 11)",
+        params: skelbpt::PARAMS,
+        create: |p| Box::new(skelbpt::SkeletonBpt::from_params(p)),
     },
 ];
 

@@ -18,9 +18,10 @@ use std::sync::Arc;
 use super::params::{ParamKind, ParamSpec, Params};
 use super::pt::{trace, DirectionGuide, GuidedStep, GuidedVertex};
 use super::{Integrator, Preparation, PrepareError, SampleContext, Scratch};
+use crate::guided::analysis::prepare_guide;
 use crate::guided::directions::{mixture_pdf, sample_mixture, Directions, Target};
 use crate::guided::importance::{importance_nodes, incident_power};
-use crate::guided::{guide_for, GuideSettings, SkeletonGuide};
+use crate::guided::{GuideSettings, SkeletonGuide};
 use crate::material::{Bsdf, BsdfModel};
 use crate::math::{vec2, Vec3};
 use crate::sampling::Rng;
@@ -41,12 +42,7 @@ pub const PARAMS: &[ParamSpec] = &[
         doc: "probability of drawing a direction from the skeleton rather than the BSDF (eq. 168); 0 is pt; \
               below 1, or directions no lobe reaches and delta lobes would never be drawn (a bias)",
     },
-    ParamSpec {
-        name: "resolution",
-        kind: ParamKind::Int { min: 8, max: 1024 },
-        default: "128",
-        doc: "voxels on the longest side of the analysed box (the scene's bounds grown by 10 %)",
-    },
+    super::params::SKELETON_RESOLUTION,
     ParamSpec {
         name: "importance_rays",
         kind: ParamKind::Int { min: 1, max: 1 << 28 },
@@ -245,13 +241,7 @@ impl Integrator for SkeletonPathTracer {
             prep.notes.push("the scene has no lights: plain path tracing".into());
             return Ok(prep);
         }
-        let clock = std::time::Instant::now();
-        let (guide, cached) = guide_for(scene, &GuideSettings { resolution: self.resolution }).map_err(PrepareError)?;
-        if cached {
-            prep.stages.push(("empty-space analysis (cached)".into(), clock.elapsed().as_secs_f64()));
-        } else {
-            prep.stages.extend(guide.timings.iter().cloned());
-        }
+        let guide = prepare_guide(scene, &GuideSettings { resolution: self.resolution }, &mut prep)?;
         let lap = std::time::Instant::now();
         let values = incident_power(scene, &guide, self.importance_rays, IMPORTANCE_SEED);
         let importance = importance_nodes(&values, self.importance_nodes);

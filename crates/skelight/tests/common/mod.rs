@@ -7,9 +7,21 @@ use std::path::PathBuf;
 use skelight::eval::{block_means, relative_block_t_statistic};
 use skelight::film::Film;
 use skelight::imageio::Image;
-use skelight::integrator::{by_name, render, Integrator, RenderOptions};
+use skelight::integrator::{render, Integrator, RenderOptions};
 use skelight::scene::load::load;
 use skelight::scene::Scene;
+
+/// A scene file of this repository's `scenes/`.
+pub fn repo_scene(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name)
+}
+
+/// A scene loaded and set to a `w`×`h` film.
+pub fn load_small(path: &std::path::Path, w: usize, h: usize) -> Scene {
+    let mut s = load(path, &[]).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    s.set_resolution(w, h);
+    s
+}
 
 /// The project's `../shared` folder (beside the repository), which CI provides.
 pub fn shared_dir() -> PathBuf {
@@ -138,7 +150,7 @@ pub fn every_estimator() -> Vec<(&'static str, u32)> {
         .into_iter()
         .map(|name| {
             let spp = match name {
-                "bpt" => 64,
+                "bpt" | "skelbpt" => 64,
                 "ibpt" => 128,
                 _ => 256,
             };
@@ -153,7 +165,8 @@ pub fn estimators_agree(scene: &Scene, runs: &[(&str, u32)]) {
     let renders: Vec<(&str, Image, Image)> = runs
         .iter()
         .filter_map(|&(name, spp)| {
-            let mut i = by_name(name).unwrap();
+            let (estimator, params) = skelight::integrator::registry::parse_spec(name).unwrap();
+            let mut i = skelight::integrator::registry::create(&estimator, &params).unwrap();
             if let Some(why) = i.limitation(scene) {
                 println!("{name} skipped: {why}");
                 return None;
