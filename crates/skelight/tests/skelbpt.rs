@@ -65,18 +65,18 @@ fn check_draws(combination: Combination) {
     let (_, skelbpt, _, table) = door_corner_tables(combination);
     let (_, accepted, _) = skelbpt.nodes().unwrap();
     assert_eq!(table.candidates(), 256);
-    let grid = 1 << 17;
+    let grid: u64 = 1 << 17;
     let mut checked = 0;
     for node in accepted.iter().map(|&n| Some(n)).take(6).chain([None]) {
         for s in 2..=table.depths() + 1 {
             let eligible = table.eligible(s);
             if eligible.is_empty() {
-                assert!(table.draw(node, s, 0.5).is_none());
+                assert!(table.draw(node, s, 1 << 31).is_none());
                 continue;
             }
             let mut counts = std::collections::HashMap::<usize, (u64, f32, Origin)>::new();
             for k in 0..grid {
-                let d = table.draw(node, s, (k as f32 + 0.5) / grid as f32).expect("a draw");
+                let d = table.draw(node, s, (k * ((1u64 << 32) / grid) + 7) as u32).expect("a draw");
                 let e = counts.entry(d.candidate).or_insert((0, d.probability, d.origin));
                 e.0 += 1;
                 assert_eq!(e.1, d.probability, "one candidate, two probabilities");
@@ -124,6 +124,7 @@ fn resampled_joins_carry_the_weights_of_the_paths_they_make() {
     let mut compared = 0;
     for c in 0..table.candidates() {
         let light = paths.path(table.paths[c] as usize);
+        assert_eq!(table.path(c).len(), light.len(), "candidate {c}: a copy of another path");
         running_sums(&scene, light, Heuristic::Balance, &mut sums);
         assert_eq!(table.sums(c), &sums[..], "candidate {c}: running sums of another path");
         if c % 16 != 0 {
@@ -230,7 +231,7 @@ fn check_average(
     let mut rng = Rng::new(4, 0, 0);
     let (mut camera, mut camera_sums, mut light_sums) = (Vec::new(), Vec::new(), Vec::new());
     let mut checked = 0;
-    let grid = 1 << 15;
+    let grid: u64 = 1 << 15;
     for _ in 0..40 {
         camera_subpath(&scene, vec2(rng.next_f32() * 64.0, rng.next_f32() * 32.0), &mut rng, 6, &mut camera);
         running_sums(&scene, &camera, Heuristic::Balance, &mut camera_sums);
@@ -244,9 +245,9 @@ fn check_average(
                 let mut seen = std::collections::HashSet::new();
                 let mut expectation = 0.0f64;
                 for k in 0..grid {
-                    let Some(d) = table.draw(node, s, (k as f32 + 0.5) / grid as f32) else { break };
+                    let Some(d) = table.draw(node, s, (k * ((1u64 << 32) / grid) + 7) as u32) else { break };
                     if seen.insert(d.candidate) {
-                        let c = skelbpt::resampled_join(&scene, &paths, &table, &d, &join);
+                        let c = skelbpt::resampled_join(&scene, &table, &d, &join);
                         expectation += d.probability as f64 * c.luminance() as f64;
                     }
                 }

@@ -25,7 +25,7 @@ use crate::integrator::mis::{running_sums, Heuristic};
 use crate::integrator::subpath::LightPaths;
 use crate::integrator::vertex::{Vertex, VertexKind};
 use crate::math::Vec3;
-use crate::sampling::{Distribution1D, Rng};
+use crate::sampling::Rng;
 use crate::scene::Scene;
 
 /// Which distribution a resampled candidate is credited to (thesis Fig. 106).
@@ -97,23 +97,51 @@ pub struct Draw {
     pub origin: Origin,
 }
 
-/// A node's table for one light depth.
+/// A node's table for one light depth, over the depth's eligible candidates in their
+/// order. Drawn by a 32-bit random integer r: candidate i for `ends[i − 1] ≤ r < ends[i]`,
+/// so its probability is exactly (ends[i] − ends[i − 1]) / 2³² — what the estimator divides
+/// by is what the draw did, with no rounding of a float CDF in between.
 #[derive(Default)]
 struct Table {
-    /// Over the depth's eligible candidates, in their order.
-    distribution: Option<Distribution1D>,
+    /// Exclusive upper thresholds, strictly increasing, the last 2³².
+    ends: Vec<u64>,
     origins: Vec<Origin>,
 }
+
+impl Table {
+    fn new(probabilities: &[f64], origins: Vec<Origin>) -> Table {
+        let total: f64 = probabilities.iter().sum();
+        let mut ends = Vec::with_capacity(probabilities.len());
+        let (mut acc, mut prev) = (0.0f64, 0u64);
+        for (i, p) in probabilities.iter().enumerate() {
+            acc += p / total;
+            let remaining = (probabilities.len() - 1 - i) as u64;
+            // Every candidate keeps at least one threshold step (its probability is at
+            // least 1/(3m), far above 2⁻³²), and room is left for those after it.
+            let end = ((acc * TWO_32) as u64).clamp(prev + 1, (1u64 << 32) - remaining);
+            ends.push(end);
+            prev = end;
+        }
+        if let Some(last) = ends.last_mut() {
+            *last = 1 << 32;
+        }
+        Table { ends, origins }
+    }
+}
+
+const TWO_32: f64 = 4_294_967_296.0;
 
 /// One iteration's candidates and tables.
 #[derive(Default)]
 pub struct Resampling {
     /// The light sub-path (index into the iteration's [`LightPaths`]) of each candidate.
     pub paths: Vec<u32>,
-    /// The candidates' MIS running sums ([`running_sums`]), candidate c's at
-    /// `sums[sum_starts[c]..sum_starts[c + 1]]`.
+    /// The candidates' vertices, copied together (joins read them at random: kept close,
+    /// they stay in cache), candidate c's at `vertices[starts[c]..starts[c + 1]]`, as are
+    /// its MIS running sums ([`running_sums`]) in `sums`.
+    vertices: Vec<Vertex>,
+    starts: Vec<u32>,
     sums: Vec<f32>,
-    sum_starts: Vec<u32>,
     /// Per light depth s ≥ 2 (at s − 2), the candidates whose vertex y_s can end a
     /// connection.
     eligible: Vec<Vec<u32>>,
@@ -150,22 +178,25 @@ impl Resampling {
         let clock = std::time::Instant::now();
         let mut rng = Rng::new(input.seed ^ CANDIDATE_STREAM, 0, input.iteration);
         self.paths = random_subset(light_paths.len(), input.candidates, &mut rng);
+        self.vertices.clear();
         self.sums.clear();
-        self.sum_starts.clear();
-        self.sum_starts.push(0);
+        self.starts.clear();
+        self.starts.push(0);
         let mut buffer = Vec::new();
         let mut depths = 0;
         for &p in &self.paths {
             let path = light_paths.path(p as usize);
             running_sums(scene, path, input.heuristic, &mut buffer);
+            self.vertices.extend_from_slice(path);
             self.sums.extend_from_slice(&buffer);
-            self.sum_starts.push(self.sums.len() as u32);
+            self.starts.push(self.vertices.len() as u32);
             depths = depths.max(path.len().min(input.deepest).saturating_sub(1));
         }
         self.eligible.iter_mut().for_each(Vec::clear);
         self.eligible.resize_with(depths, Vec::new);
-        for (c, &p) in self.paths.iter().enumerate() {
-            for (i, y) in light_paths.path(p as usize).iter().enumerate().take(depths + 1).skip(1) {
+        for c in 0..self.paths.len() {
+            let path = &self.vertices[self.starts[c] as usize..self.starts[c + 1] as usize];
+            for (i, y) in path.iter().enumerate().take(depths + 1).skip(1) {
                 if ends_connection(scene, y) {
                     self.eligible[i - 1].push(c as u32);
                 }
@@ -176,20 +207,20 @@ impl Resampling {
         for (slot, &n) in input.accepted.iter().enumerate() {
             self.slot_of[n as usize] = slot as u32;
         }
-        let (paths, eligible) = (&self.paths, &self.eligible);
+        let this = &*self;
         let built: Vec<(Table, u64, u64)> = (0..input.accepted.len() * depths)
             .into_par_iter()
             .map(|k| {
                 let (node, d) = (input.accepted[k / depths], k % depths);
                 let at = input.guide.position(node);
-                let vertex = |c: u32| &light_paths.path(paths[c as usize] as usize)[d + 1];
-                build_table(scene, at, &eligible[d], vertex, input.combination)
+                let vertex = |c: u32| &this.path(c as usize)[d + 1];
+                build_table(scene, at, &this.eligible[d], vertex, input.combination)
             })
             .collect();
         self.stats = BuildStats { iterations: 1, accepted_nodes: input.accepted.len() as u64, ..BuildStats::default() };
         self.tables.clear();
         for (table, rays, visible) in built {
-            self.stats.tables += table.distribution.is_some() as u64;
+            self.stats.tables += !table.ends.is_empty() as u64;
             self.stats.shadow_rays += rays;
             self.stats.visible += visible;
             self.tables.push(table);
@@ -208,9 +239,9 @@ impl Resampling {
     }
 
     /// Draws a candidate for an eye vertex mapped to `node` at light depth `s` ≥ 2 with the
-    /// uniform number `u`; `None` where no candidate has a vertex there.
+    /// uniform 32-bit integer `r`; `None` where no candidate has a vertex there.
     #[inline]
-    pub fn draw(&self, node: Option<u32>, s: usize, u: f32) -> Option<Draw> {
+    pub fn draw(&self, node: Option<u32>, s: usize, r: u32) -> Option<Draw> {
         let d = s.checked_sub(2)?;
         let eligible = self.eligible.get(d)?;
         if eligible.is_empty() {
@@ -219,17 +250,18 @@ impl Resampling {
         let slot = node.map_or(u32::MAX, |n| self.slot_of[n as usize]);
         if slot != u32::MAX {
             let table = &self.tables[slot as usize * self.eligible.len() + d];
-            if let Some(dist) = &table.distribution {
-                let (i, probability, _) = dist.sample_discrete(u);
+            if !table.ends.is_empty() {
+                let i = table.ends.partition_point(|&e| e <= r as u64);
+                let start = if i == 0 { 0 } else { table.ends[i - 1] };
+                let probability = ((table.ends[i] - start) as f64 / TWO_32) as f32;
                 return Some(Draw { candidate: eligible[i] as usize, probability, origin: table.origins[i] });
             }
         }
-        let i = ((u * eligible.len() as f32) as usize).min(eligible.len() - 1);
-        Some(Draw {
-            candidate: eligible[i] as usize,
-            probability: 1.0 / eligible.len() as f32,
-            origin: Origin::Fallback,
-        })
+        // Uniform: r·m / 2³² puts ⌊2³²/m⌋ or ⌈2³²/m⌉ values of r on each candidate, within
+        // m/2³² (relatively) of 1/m.
+        let m = eligible.len() as u64;
+        let i = ((r as u64 * m) >> 32) as usize;
+        Some(Draw { candidate: eligible[i] as usize, probability: 1.0 / m as f32, origin: Origin::Fallback })
     }
 
     /// The candidates whose vertex y_s can end a connection (those a draw at depth s can
@@ -238,10 +270,16 @@ impl Resampling {
         s.checked_sub(2).and_then(|d| self.eligible.get(d)).map_or(&[], |e| &e[..])
     }
 
+    /// Candidate `c`'s light sub-path.
+    #[inline]
+    pub fn path(&self, c: usize) -> &[Vertex] {
+        &self.vertices[self.starts[c] as usize..self.starts[c + 1] as usize]
+    }
+
     /// Candidate `c`'s MIS running sums.
     #[inline]
     pub fn sums(&self, c: usize) -> &[f32] {
-        &self.sums[self.sum_starts[c] as usize..self.sum_starts[c + 1] as usize]
+        &self.sums[self.starts[c] as usize..self.starts[c + 1] as usize]
     }
 
     /// Bytes held by the candidates and tables.
@@ -301,14 +339,14 @@ fn build_table<'a>(
     }
     let visible = seen.iter().filter(|v| **v).count() as u64;
     let (probabilities, origins) = combine(&weights, &seen, combination);
-    let table = Table { distribution: Some(Distribution1D::new(&probabilities)), origins };
+    let table = Table::new(&probabilities, origins);
     (table, m as u64, visible)
 }
 
 /// Each candidate's probability and the distribution it is credited to, from its weight
 /// w_n (eq. 187) and whether the node sees it: V, U and C (eq. 188–190) combined as the
 /// module says.
-pub fn combine(weights: &[f64], seen: &[bool], combination: Combination) -> (Vec<f32>, Vec<Origin>) {
+pub fn combine(weights: &[f64], seen: &[bool], combination: Combination) -> (Vec<f64>, Vec<Origin>) {
     let m = weights.len();
     let sum_u: f64 = weights.iter().sum();
     let sum_v: f64 = weights.iter().zip(seen).filter(|(_, s)| **s).map(|(w, _)| w).sum();
@@ -338,13 +376,11 @@ pub fn combine(weights: &[f64], seen: &[bool], combination: Combination) -> (Vec
                 kept[x as usize] += p(x, j);
             }
             let k = kept.iter().filter(|z| **z > 0.0).count() as f64;
-            (0..m).map(|j| (p(origins[j], j) / (k * kept[origins[j] as usize])) as f32).collect()
+            (0..m).map(|j| p(origins[j], j) / (k * kept[origins[j] as usize])).collect()
         }
         Combination::Balance => {
             let k = 1.0 + (sum_u > 0.0) as u8 as f64 + (sum_v > 0.0) as u8 as f64;
-            (0..m)
-                .map(|j| ((p(Origin::Visible, j) + p(Origin::Weighted, j) + p(Origin::Uniform, j)) / k) as f32)
-                .collect()
+            (0..m).map(|j| (p(Origin::Visible, j) + p(Origin::Weighted, j) + p(Origin::Uniform, j)) / k).collect()
         }
     };
     (probabilities, origins)
@@ -397,15 +433,15 @@ mod tests {
             assert_eq!(origins[j] as usize, x, "candidate {j}");
         }
         for j in 0..6 {
-            assert!((p[j] as f64 - two_stage[j]).abs() < 1e-6, "{p:?} vs {two_stage:?}");
-            assert!(p[j] as f64 >= 1.0 / (3.0 * m) - 1e-7, "candidate {j} starved: {}", p[j]);
+            assert!((p[j] - two_stage[j]).abs() < 1e-12, "{p:?} vs {two_stage:?}");
+            assert!(p[j] >= 1.0 / (3.0 * m) - 1e-12, "candidate {j} starved: {}", p[j]);
         }
-        assert!((p.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+        assert!((p.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         // The balance mixture, and a node that sees nothing (V empty: K = 2).
         let (b, _) = combine(&weights, &seen, Combination::Balance);
-        assert!((b[0] as f64 - (pv(0) + pu(0) + 1.0 / m) / 3.0).abs() < 1e-6);
+        assert!((b[0] - (pv(0) + pu(0) + 1.0 / m) / 3.0).abs() < 1e-12);
         let (blind, o) = combine(&weights, &[false; 6], Combination::Max);
         assert!(o.iter().all(|x| *x != Origin::Visible));
-        assert!((blind.iter().sum::<f32>() - 1.0).abs() < 1e-6 && blind.iter().all(|&q| q > 0.0));
+        assert!((blind.iter().sum::<f64>() - 1.0).abs() < 1e-12 && blind.iter().all(|&q| q > 0.0));
     }
 }

@@ -24,6 +24,16 @@
 //!   visible from gains nothing from choosing among them;
 //! - surface points find their node by eq. 151–155 (`skelight-shape`'s mapping), not by a
 //!   search of neighbouring empty voxels along the normal.
+//!
+//! Where it departs from the thesis's letter: X is drawn with probability 1/K among the K
+//! distributions left non-empty (V is empty at a node that sees no light vertex), not 1/3;
+//! C is uniform over the candidates with a connectible vertex at depth s (those without one
+//! contribute nothing whichever way they are drawn); acceptance is updated between passes
+//! of the render loop (up to 64 iterations), not every iteration, so that each pass is a
+//! fixed estimator. A render resumed from a checkpoint starts its acceptance again from the
+//! pilot counts (the image stays unbiased; it is not bit-identical to an uninterrupted one).
+//! With `combination=balance` a draw is credited to the distribution that gives it the
+//! highest probability, as under max, for the per-distribution images.
 
 use std::sync::{Arc, Mutex};
 
@@ -31,7 +41,7 @@ use super::bpt::{Bpt, PixelPaths, PixelScratch, Recorded};
 use super::mis::{AllStrategies, Heuristic};
 use super::params::{ParamKind, ParamSpec, Params};
 use super::strategies;
-use super::subpath::{camera_subpath, LightPaths};
+use super::subpath::camera_subpath;
 use super::vertex::{Vertex, VertexKind};
 use super::{Integrator, Iteration, Preparation, PrepareError, SampleContext, Scratch};
 use crate::color::Rgb;
@@ -151,7 +161,6 @@ impl SkeletonBpt {
         &self,
         scene: &Scene,
         guide: &SkeletonGuide,
-        it: &Iteration,
         table: &Resampling,
         paths: &PixelPaths,
         t: usize,
@@ -172,13 +181,12 @@ impl SkeletonBpt {
             if !self.bpt.fits(scene, s, t) {
                 break;
             }
-            let u = rng.next_f32();
-            let Some(draw) = table.draw(node, s, u) else { continue };
+            let Some(draw) = table.draw(node, s, rng.next_u32()) else { continue };
             if !(self.only == Only::All || self.only == Only::Drawn(draw.origin)) {
                 continue;
             }
             let join = Join { s, camera, camera_sums: paths.camera_sums, t, heuristic: self.bpt.heuristic };
-            l += resampled_join(scene, &it.light_paths, table, &draw, &join);
+            l += resampled_join(scene, table, &draw, &join);
         }
         l
     }
@@ -268,7 +276,7 @@ impl Integrator for SkeletonBpt {
         match (&self.prepared, it.extra::<Resampling>()) {
             (Some(p), Some(table)) => {
                 let mut joins = |paths: &PixelPaths, t: usize, rng: &mut Rng| {
-                    self.resampled_joins(scene, &p.guide, it, table, paths, t, rng, mapped)
+                    self.resampled_joins(scene, &p.guide, table, paths, t, rng, mapped)
                 };
                 self.bpt.sample_pixel(scene, (x, y), rng, it, buffers, cx.tile, &mut joins);
             }
@@ -328,8 +336,8 @@ pub struct Join<'a> {
 /// vertex t, MIS-weighted as `bpt` weighs the path it makes, over N times the probability
 /// of the draw — so that its expectation over draws is the mean of that join over the N
 /// candidates (those with no vertex there counting as zero).
-pub fn resampled_join(scene: &Scene, light_paths: &LightPaths, table: &Resampling, draw: &Draw, at: &Join) -> Rgb {
-    let light = light_paths.path(table.paths[draw.candidate] as usize);
+pub fn resampled_join(scene: &Scene, table: &Resampling, draw: &Draw, at: &Join) -> Rgb {
+    let light = table.path(draw.candidate);
     let w =
         AllStrategies { heuristic: at.heuristic, light_sums: table.sums(draw.candidate), camera_sums: at.camera_sums };
     let n = table.candidates() as f32;
