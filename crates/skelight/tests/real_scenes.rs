@@ -218,3 +218,26 @@ fn raw_textures_are_read_as_linear_values() {
     let brighter = raw.iter().zip(&srgb).filter(|(r, s)| **r > **s + 0.05).count();
     assert_eq!(brighter, 4, "materials brighter read raw");
 }
+
+/// A render is a pure function of its inputs whatever the thread count, for every estimator,
+/// including those that learn between passes (skelpt's parameters, skelbpt's node
+/// acceptance): spp is set so that they render at least two passes.
+#[test]
+fn every_estimator_renders_the_same_image_whatever_the_thread_count() {
+    let scene = load_small(&repo_scene("door-corner.toml"), 64, 32);
+    for name in skelight::integrator::registry::names() {
+        let spp = match name {
+            "skelpt" => 136,
+            "skelbpt" => 40,
+            _ => 4,
+        };
+        let image = |threads: usize| {
+            let mut i = by_name(name).unwrap();
+            let opts = skelight::integrator::RenderOptions { spp: Some(spp), time: None, seed: 3, threads };
+            skelight::integrator::render(&scene, i.as_mut(), &opts, None, |_, _| true).unwrap().film.image()
+        };
+        let (one, three) = (image(1), image(3));
+        let same = one.pixels.iter().zip(&three.pixels).all(|(a, b)| a == b);
+        assert!(same, "{name}: 1 and 3 threads give different images");
+    }
+}
