@@ -192,16 +192,17 @@ impl Resampling {
             self.starts.push(self.vertices.len() as u32);
             depths = depths.max(path.len().min(input.deepest).saturating_sub(1));
         }
-        self.eligible.iter_mut().for_each(Vec::clear);
-        self.eligible.resize_with(depths, Vec::new);
+        let mut eligible = std::mem::take(&mut self.eligible);
+        eligible.iter_mut().for_each(Vec::clear);
+        eligible.resize_with(depths, Vec::new);
         for c in 0..self.paths.len() {
-            let path = &self.vertices[self.starts[c] as usize..self.starts[c + 1] as usize];
-            for (i, y) in path.iter().enumerate().take(depths + 1).skip(1) {
+            for (i, y) in self.path(c).iter().enumerate().take(depths + 1).skip(1) {
                 if ends_connection(scene, y) {
-                    self.eligible[i - 1].push(c as u32);
+                    eligible[i - 1].push(c as u32);
                 }
             }
         }
+        self.eligible = eligible;
         self.slot_of.clear();
         self.slot_of.resize(input.guide.graph.nodes.len(), u32::MAX);
         for (slot, &n) in input.accepted.iter().enumerate() {
@@ -282,10 +283,12 @@ impl Resampling {
         &self.sums[self.starts[c] as usize..self.starts[c + 1] as usize]
     }
 
-    /// Bytes held by the candidates and tables.
+    /// Bytes held by the candidates (their copied vertices and sums) and the tables.
     pub fn bytes(&self) -> usize {
         let tables: usize = self.tables.iter().map(|t| t.origins.len() * (1 + 8) + std::mem::size_of::<Table>()).sum();
-        tables + self.sums.len() * 4 + self.paths.len() * 8 + self.eligible.iter().map(|e| e.len() * 4).sum::<usize>()
+        let candidates =
+            self.vertices.len() * std::mem::size_of::<Vertex>() + self.sums.len() * 4 + self.starts.len() * 4;
+        tables + candidates + self.paths.len() * 4 + self.eligible.iter().map(|e| e.len() * 4).sum::<usize>()
     }
 }
 
