@@ -65,11 +65,11 @@ pub(crate) struct RenderArgs {
     /// same random numbers, so the images add up to the full render.
     #[arg(long, value_name = "DIR")]
     debug_strategies: Option<PathBuf>,
-    /// skelbpt only: also write the joins drawn from each resampling distribution (V, U, C,
-    /// and the fallback) and the strategies not resampled to DIR/NAME.exr (and .png, their
+    /// skelbpt and icbpt: also write the joins drawn from each resampling distribution (V, U,
+    /// C, and the fallback; icbpt's V is Georgiev's full distribution) and the strategies not resampled to DIR/NAME.exr (and .png, their
     /// means to DIR/distributions.csv; thesis Fig. 106), rendered with the same random
-    /// numbers so that they add up to the full render, and the nodes the last pass built
-    /// tables for over the skeleton (nodes_view.png).
+    /// numbers so that they add up to the full render, and (skelbpt) the nodes the last pass
+    /// built tables for over the skeleton (nodes_view.png).
     #[arg(long, value_name = "DIR")]
     debug_distributions: Option<PathBuf>,
 }
@@ -282,18 +282,19 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
         job.integrator = bpt(Recorded::All);
     }
     if let Some(dir) = &args.debug_distributions {
-        if job.integrator.name() != "skelbpt" {
-            bail!("--debug-distributions applies to --integrator skelbpt");
+        let name = job.integrator.name();
+        if !matches!(name, "skelbpt" | "icbpt") {
+            bail!("--debug-distributions applies to --integrator skelbpt or icbpt");
         }
         let mut parts = Vec::new();
         for only in ["V", "U", "C", "fallback", "unresampled"] {
             let mut p = params.clone();
             p.push(("only".into(), only.into()));
-            let (integrator, _) = integrator::registry::create_for_scene("skelbpt", &job.scene.settings, &p)?;
+            let (integrator, _) = integrator::registry::create_for_scene(name, &job.scene.settings, &p)?;
             parts.push(Part { stem: only.into(), columns: only.into(), integrator });
         }
         render_parts(&mut job, "--debug-distributions", dir, ("distributions.csv", "part"), parts, &args)?;
-        let (integrator, _) = integrator::registry::create_for_scene("skelbpt", &job.scene.settings, &params)?;
+        let (integrator, _) = integrator::registry::create_for_scene(name, &job.scene.settings, &params)?;
         job.integrator = integrator;
     }
     let r = job.run(None, args.quiet, |_, _| Ok(()))?;

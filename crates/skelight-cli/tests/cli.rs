@@ -504,36 +504,30 @@ fn estimator_parameters_from_the_command_line() {
     }
 }
 
+/// Renders with `--debug-distributions` into a fresh folder: the output and the folder.
+fn render_distributions(estimator: &str) -> (String, PathBuf, PathBuf) {
+    let d = tmp(estimator);
+    let (dbg, img) = (d.join("dbg"), d.join("img.exr"));
+    let (dbg_s, img_s) = (dbg.to_str().unwrap(), img.to_str().unwrap());
+    let args = ["render", "-i", estimator, "-P", "candidates=64", "--spp", "2", "--resolution", "32", "24"];
+    let text = run_ok(&[&args[..], &["--debug-distributions", dbg_s, "-o", img_s]].concat());
+    for f in ["V.exr", "U.png", "C.exr", "fallback.exr", "unresampled.exr", "distributions.csv"] {
+        assert!(dbg.join(f).exists(), "{f} missing");
+    }
+    let csv = std::fs::read_to_string(dbg.join("distributions.csv")).unwrap();
+    assert!(csv.starts_with("part,mean_r") && csv.lines().count() == 6, "{csv}");
+    (text, dbg, img)
+}
+
 /// `--debug-distributions` writes skelbpt's per-distribution images, their means and the
 /// nodes picture; the per-iteration cost of its tables is reported; it refuses other
 /// estimators and time budgets.
 #[test]
 fn skelbpt_distribution_pictures() {
-    let d = tmp("skelbpt");
-    let (dbg, img) = (d.join("dbg"), d.join("img.exr"));
+    let (text, dbg, img) = render_distributions("skelbpt");
     let (dbg_s, img_s) = (dbg.to_str().unwrap(), img.to_str().unwrap());
-    let text = run_ok(&[
-        "render",
-        "-i",
-        "skelbpt",
-        "-P",
-        "candidates=64",
-        "--spp",
-        "2",
-        "--resolution",
-        "32",
-        "24",
-        "--debug-distributions",
-        dbg_s,
-        "-o",
-        img_s,
-    ]);
     assert!(text.contains("resampling tables:") && text.contains("per iteration"), "{text}");
-    for f in ["V.exr", "U.png", "C.exr", "fallback.exr", "unresampled.exr", "distributions.csv", "nodes_view.png"] {
-        assert!(dbg.join(f).exists(), "{f} missing");
-    }
-    let csv = std::fs::read_to_string(dbg.join("distributions.csv")).unwrap();
-    assert!(csv.starts_with("part,mean_r") && csv.lines().count() == 6, "{csv}");
+    assert!(dbg.join("nodes_view.png").exists(), "nodes_view.png missing");
     for args in [
         &["render", "-i", "bpt", "--spp", "1", "--debug-distributions", dbg_s, "-o", img_s][..],
         &["render", "-i", "skelbpt", "--time", "1", "--debug-distributions", dbg_s, "-o", img_s][..],
@@ -542,4 +536,13 @@ fn skelbpt_distribution_pictures() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success() && err.contains("--debug-distributions") && !err.contains("panicked"), "{err}");
     }
+}
+
+/// icbpt takes `--debug-distributions` too (no nodes picture: it has no skeleton), and
+/// reports its records' tables.
+#[test]
+fn icbpt_distribution_pictures() {
+    let (text, dbg, _) = render_distributions("icbpt");
+    assert!(text.contains("importance records") && text.contains("per iteration"), "{text}");
+    assert!(!dbg.join("nodes_view.png").exists());
 }

@@ -244,8 +244,15 @@ fn skelbpt_matches_mitsuba_on_every_conformance_scene() {
     run_conformance("skelbpt", 18);
 }
 
+/// icbpt resamples them from tables at importance records (d = 0.001: 17 eye sub-paths'
+/// records per iteration at 128×128).
+#[test]
+fn icbpt_matches_mitsuba_on_every_conformance_scene() {
+    run_conformance("icbpt", 18);
+}
+
 /// The estimators the tests above check: every one the registry offers must be among them.
-const CHECKED: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt", "skelbpt"];
+const CHECKED: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt", "skelbpt", "icbpt"];
 
 #[test]
 fn every_registered_estimator_has_a_conformance_test() {

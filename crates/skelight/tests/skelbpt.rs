@@ -14,7 +14,7 @@ use skelight::integrator::registry;
 use skelight::integrator::skelbpt::{self, SkeletonBpt};
 use skelight::integrator::strategies::connect_vertices;
 use skelight::integrator::subpath::{camera_subpath, LightPaths};
-use skelight::integrator::{render, Integrator, RenderOptions};
+use skelight::integrator::Integrator;
 use skelight::math::vec2;
 use skelight::sampling::Rng;
 
@@ -153,23 +153,7 @@ fn resampled_joins_carry_the_weights_of_the_paths_they_make() {
 /// resampled, add up to the render (they see the same random numbers).
 #[test]
 fn per_distribution_images_add_up_to_the_render() {
-    let scene = door_corner(32, 16);
-    let opts = RenderOptions { spp: Some(4), time: None, seed: 2, threads: 0 };
-    let image = |only: &str| {
-        let mut i = registry::create("skelbpt", &[("only".into(), only.into())]).unwrap();
-        render(&scene, i.as_mut(), &opts, None, |_, _| true).unwrap().film.image()
-    };
-    let all = image("all");
-    let parts: Vec<_> = ["V", "U", "C", "fallback", "unresampled"].iter().map(|o| (o, image(o))).collect();
-    for (name, part) in &parts {
-        println!("{name}: mean {:?}", part.mean());
-        assert!(part.mean().luminance() > 0.0, "{name} contributes nothing");
-    }
-    for (i, p) in all.pixels.iter().enumerate() {
-        let sum = parts.iter().fold(skelight::color::Rgb::BLACK, |acc, (_, img)| acc + img.pixels[i]);
-        let d = (sum - *p).luminance().abs();
-        assert!(d <= 1e-4 * p.luminance().abs() + 1e-6, "pixel {i}: parts {sum:?} vs {p:?}");
-    }
+    per_distribution_parts_add_up(&door_corner(32, 16), "skelbpt", &[], &[]);
 }
 
 /// Where most connections of `bpt` are blocked by the door, skelbpt (its default, every

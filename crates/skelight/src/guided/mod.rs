@@ -6,8 +6,11 @@
 //! build on these.
 
 pub mod analysis;
+pub mod candidates;
 pub mod directions;
 pub mod importance;
+pub mod importance_cache;
+pub mod kdtree;
 pub mod resampling;
 
 pub use analysis::{guide_for, GuideSettings, SkeletonGuide};

@@ -6,11 +6,13 @@
 
 pub mod bpt;
 pub mod ibpt;
+pub mod icbpt;
 pub mod lt;
 pub mod mis;
 pub mod params;
 pub mod pt;
 pub mod registry;
+pub mod resampled;
 pub mod skelbpt;
 pub mod skelpt;
 pub mod strategies;

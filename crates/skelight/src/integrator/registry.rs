@@ -4,7 +4,7 @@
 //! tests all read it, so adding an estimator here is all it takes to offer it everywhere.
 
 use super::params::{ParamError, ParamSpec, Params};
-use super::{bpt, ibpt, lt, pt, skelbpt, skelpt, Integrator};
+use super::{bpt, ibpt, icbpt, lt, pt, skelbpt, skelpt, Integrator};
 
 /// One estimator as the registry offers it.
 pub struct Estimator {
@@ -71,6 +71,14 @@ pub static ESTIMATORS: &[Estimator] = &[
             "bpt whose connections resample light vertices with distributions cached at skeleton nodes (thesis ch. 11)",
         params: skelbpt::PARAMS,
         create: |p| Box::new(skelbpt::SkeletonBpt::from_params(p)),
+    },
+    Estimator {
+        name: "icbpt",
+        aliases: &[],
+        doc: "bpt whose connections resample light vertices with distributions cached at importance records \
+              (Georgiev et al. 2012 adapted to bpt, thesis section 11.5)",
+        params: icbpt::PARAMS,
+        create: |p| Box::new(icbpt::IcBpt::from_params(p)),
     },
 ];
 

@@ -35,18 +35,19 @@
 //! With `combination=balance` a draw is credited to the distribution that gives it the
 //! highest probability, as under max, for the per-distribution images.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use super::bpt::{Bpt, PixelPaths, PixelScratch, Recorded};
-use super::mis::{AllStrategies, Heuristic};
+use super::mis::Heuristic;
 use super::params::{ParamKind, ParamSpec, Params};
-use super::strategies;
+use super::resampled::{self, Only};
+pub use super::resampled::{resampled_join, Join};
 use super::subpath::camera_subpath;
-use super::vertex::{Vertex, VertexKind};
+use super::vertex::VertexKind;
 use super::{Integrator, Iteration, Preparation, PrepareError, SampleContext, Scratch};
 use crate::color::Rgb;
 use crate::guided::analysis::prepare_guide;
-use crate::guided::resampling::{BuildInput, BuildStats, Combination, Draw, Origin, Resampling};
+use crate::guided::resampling::{BuildInput, BuildStats, Combination, Resampling};
 use crate::guided::{GuideSettings, SkeletonGuide};
 use crate::math::vec2;
 use crate::sampling::Rng;
@@ -54,12 +55,7 @@ use crate::scene::Scene;
 
 /// skelbpt's parameters, as the registry offers them.
 pub const PARAMS: &[ParamSpec] = &[
-    ParamSpec {
-        name: "candidates",
-        kind: ParamKind::Int { min: 1, max: 65_536 },
-        default: "1024",
-        doc: "N: light sub-paths resampled per iteration, drawn at random among the iteration's (one per pixel)",
-    },
+    resampled::CANDIDATES,
     ParamSpec {
         name: "acceptance",
         kind: ParamKind::Float { min: 0.0, max: 1000.0 },
@@ -75,13 +71,7 @@ pub const PARAMS: &[ParamSpec] = &[
     },
     super::params::SKELETON_RESOLUTION,
     super::params::MIS_HEURISTIC,
-    ParamSpec {
-        name: "only",
-        kind: ParamKind::Choice(&["all", "V", "U", "C", "fallback", "unresampled"]),
-        default: "all",
-        doc: "record only the joins drawn from this distribution, or only the strategies not resampled \
-              (per-distribution images; the parts add up to the full image)",
-    },
+    resampled::ONLY,
 ];
 
 /// Seed of the pilot eye sub-paths (fixed: the preparation is part of the estimator).
@@ -97,15 +87,7 @@ pub struct SkeletonBpt {
     only: Only,
     prepared: Option<Prepared>,
     /// What the iterations' builds cost, summed.
-    stats: Mutex<(BuildStats, usize)>,
-}
-
-/// Which contributions are recorded.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Only {
-    All,
-    Drawn(Origin),
-    Unresampled,
+    stats: resampled::BuildLog,
 }
 
 /// What sampling reads.
@@ -125,13 +107,9 @@ struct TileScratch {
 
 impl SkeletonBpt {
     pub fn from_params(p: &Params) -> SkeletonBpt {
-        let only = match p.choice("only") {
-            "all" => Only::All,
-            "unresampled" => Only::Unresampled,
-            name => Only::Drawn(Origin::ALL.into_iter().find(|o| o.name() == name).unwrap_or(Origin::Fallback)),
-        };
+        let only = Only::from_params(p);
         let heuristic = Heuristic::parse(p.choice("heuristic")).unwrap_or_default();
-        let recorded = if matches!(only, Only::Drawn(_)) { Recorded::Nothing } else { Recorded::All };
+        let recorded = if only.records_unresampled() { Recorded::All } else { Recorded::Nothing };
         SkeletonBpt {
             bpt: Bpt { max_depth: None, heuristic, only: recorded },
             candidates: p.int("candidates") as usize,
@@ -140,7 +118,7 @@ impl SkeletonBpt {
             resolution: p.int("resolution") as usize,
             only,
             prepared: None,
-            stats: Mutex::new((BuildStats::default(), 0)),
+            stats: resampled::BuildLog::default(),
         }
     }
 
@@ -152,43 +130,27 @@ impl SkeletonBpt {
 
     /// What the iterations' table builds cost so far, and the most memory one held.
     pub fn build_stats(&self) -> (BuildStats, usize) {
-        *self.stats.lock().unwrap_or_else(|e| e.into_inner())
+        self.stats.get()
     }
 
-    /// The joins of camera vertex t with one resampled candidate per light depth s ≥ 2.
-    #[allow(clippy::too_many_arguments)]
+    /// The joins of camera vertex t with one candidate per light depth s ≥ 2, drawn from
+    /// its node's tables.
     fn resampled_joins(
         &self,
         scene: &Scene,
-        guide: &SkeletonGuide,
-        table: &Resampling,
+        (guide, table): (&SkeletonGuide, &Resampling),
         paths: &PixelPaths,
         t: usize,
         rng: &mut Rng,
         mapped: &mut [u32],
     ) -> Rgb {
-        let camera = paths.camera;
-        let z = &camera[t - 1];
-        if z.kind != VertexKind::Surface || !z.can_connect(scene) {
-            return Rgb::BLACK;
-        }
+        let Some(z) = resampled::joinable(scene, paths, t) else { return Rgb::BLACK };
         let node = guide.node_at(z.p(), z.n(), z.si.wi);
         if let Some(n) = node {
             mapped[n as usize] += 1;
         }
-        let mut l = Rgb::BLACK;
-        for s in 2..=table.depths() + 1 {
-            if !self.bpt.fits(scene, s, t) {
-                break;
-            }
-            let Some(draw) = table.draw(node, s, rng.next_u32()) else { continue };
-            if !(self.only == Only::All || self.only == Only::Drawn(draw.origin)) {
-                continue;
-            }
-            let join = Join { s, camera, camera_sums: paths.camera_sums, t, heuristic: self.bpt.heuristic };
-            l += resampled_join(scene, table, &draw, &join);
-        }
-        l
+        let draw = |s: usize, rng: &mut Rng| table.draw(node, s, rng.next_u32());
+        resampled::joins_at(&self.bpt, scene, table, paths, t, rng, self.only, draw)
     }
 }
 
@@ -198,11 +160,7 @@ impl Integrator for SkeletonBpt {
     }
 
     fn describe(&self) -> String {
-        let only = match self.only {
-            Only::All => "all",
-            Only::Unresampled => "unresampled",
-            Only::Drawn(o) => o.name(),
-        };
+        let only = self.only.name();
         format!(
             "skelbpt candidates={} acceptance={} combination={} resolution={} heuristic={} only={only}",
             self.candidates,
@@ -215,7 +173,7 @@ impl Integrator for SkeletonBpt {
 
     fn prepare(&mut self, scene: &Scene) -> Result<Preparation, PrepareError> {
         self.prepared = None;
-        *self.stats.lock().unwrap_or_else(|e| e.into_inner()) = (BuildStats::default(), 0);
+        self.stats.reset();
         let mut prep = Preparation::default();
         if scene.lights.is_empty() {
             prep.notes.push("the scene has no lights: plain bpt".into());
@@ -260,9 +218,7 @@ impl Integrator for SkeletonBpt {
             iteration: index,
         };
         table.build(scene, light_paths, &input);
-        let mut stats = self.stats.lock().unwrap_or_else(|e| e.into_inner());
-        stats.0.add(&table.stats);
-        stats.1 = stats.1.max(table.bytes());
+        self.stats.add(&table.stats, table.bytes());
     }
 
     fn new_scratch(&self) -> Scratch {
@@ -273,18 +229,13 @@ impl Integrator for SkeletonBpt {
     fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
         let it = cx.iteration;
         let TileScratch { buffers, mapped } = cx.scratch.get::<TileScratch>();
-        match (&self.prepared, it.extra::<Resampling>()) {
-            (Some(p), Some(table)) => {
-                let mut joins = |paths: &PixelPaths, t: usize, rng: &mut Rng| {
-                    self.resampled_joins(scene, &p.guide, table, paths, t, rng, mapped)
-                };
-                self.bpt.sample_pixel(scene, (x, y), rng, it, buffers, cx.tile, &mut joins);
-            }
-            _ => {
-                let mut joins = |paths: &PixelPaths, t: usize, _: &mut Rng| self.bpt.own_path_joins(scene, paths, t);
-                self.bpt.sample_pixel(scene, (x, y), rng, it, buffers, cx.tile, &mut joins);
-            }
-        }
+        let joins = match (&self.prepared, it.extra::<Resampling>()) {
+            (Some(p), Some(table)) => Some(|paths: &PixelPaths, t: usize, rng: &mut Rng| {
+                self.resampled_joins(scene, (&p.guide, table), paths, t, rng, mapped)
+            }),
+            _ => None,
+        };
+        resampled::sample_pixel(&self.bpt, scene, (x, y), rng, it, buffers, cx.tile, joins);
     }
 
     fn finish_pass(&mut self, _scene: &Scene, scratches: &mut [Scratch]) {
@@ -302,46 +253,8 @@ impl Integrator for SkeletonBpt {
     }
 
     fn report(&self) -> Vec<String> {
-        let (s, bytes) = self.build_stats();
-        if s.iterations == 0 {
-            return Vec::new();
-        }
-        let per = |x: u64| x as f64 / s.iterations as f64;
-        vec![format!(
-            "resampling tables: {} iterations, {:.1} nodes accepted and {:.0} tables per iteration, {:.0} shadow rays \
-             per iteration ({:.1} % saw the node), {:.2} ms per iteration ({:.2} s in all), at most {:.1} MB per iteration",
-            s.iterations,
-            per(s.accepted_nodes),
-            per(s.tables),
-            per(s.shadow_rays),
-            100.0 * s.visible as f64 / s.shadow_rays.max(1) as f64,
-            1e3 * s.seconds / s.iterations as f64,
-            s.seconds,
-            bytes as f64 / 1e6
-        )]
+        self.stats.report("nodes accepted")
     }
-}
-
-/// Where a resampled candidate is joined: its vertex s and camera vertex t of `camera`.
-pub struct Join<'a> {
-    pub s: usize,
-    pub camera: &'a [Vertex],
-    /// The camera sub-path's MIS running sums.
-    pub camera_sums: &'a [f32],
-    pub t: usize,
-    pub heuristic: Heuristic,
-}
-
-/// Eq. 186's term for one drawn candidate: the join of its light vertex s with camera
-/// vertex t, MIS-weighted as `bpt` weighs the path it makes, over N times the probability
-/// of the draw — so that its expectation over draws is the mean of that join over the N
-/// candidates (those with no vertex there counting as zero).
-pub fn resampled_join(scene: &Scene, table: &Resampling, draw: &Draw, at: &Join) -> Rgb {
-    let light = table.path(draw.candidate);
-    let w =
-        AllStrategies { heuristic: at.heuristic, light_sums: table.sums(draw.candidate), camera_sums: at.camera_sums };
-    let n = table.candidates() as f32;
-    strategies::connect_vertices(scene, light, at.s, at.camera, at.t, &w) / (n * draw.probability)
 }
 
 /// §11.4: the nodes at least `acceptance` times the mean count mapped to (and at least

@@ -3,7 +3,7 @@
 //! estimators reuse them with light vertices they resample.
 
 use super::mis::{self, Heuristic, Junction, PathWeight, StrategySet, SubPath};
-use super::vertex::{LensHit, Vertex, VertexKind};
+use super::vertex::{Joined, LensHit, Vertex, VertexKind};
 use crate::color::Rgb;
 use crate::geometry::{offset_origin, Ray};
 use crate::material::TransportMode;
@@ -37,7 +37,7 @@ fn shadow_origin(v: &Vertex, to: Vec3) -> Vec3 {
 }
 
 /// Shadow ray between two vertices (either may be a point light or the lens).
-fn visible(scene: &Scene, a: &Vertex, b: &Vertex) -> bool {
+pub fn visible(scene: &Scene, a: &Vertex, b: &Vertex) -> bool {
     let o = shadow_origin(a, b.p());
     let q = shadow_origin(b, o);
     !scene.occluded(&Ray { o, d: q - o, tmax: 1.0 - 1e-4 })
@@ -165,6 +165,32 @@ pub fn light_hits_lens(scene: &Scene, light: &[Vertex], hit: &LensHit, w: &impl 
     hit.vertex.beta * w.weight(scene, SubPath::new(stored, Some(&hit.vertex)), SubPath::EMPTY)
 }
 
+/// The edge joining two surface vertices, light-side `y` (reached from `y_prev`) and
+/// camera-side `z` (reached from `z_prev`): each end's BSDF·|cos| towards the other over
+/// the squared distance (the unweighted, unoccluded path throughput it adds), and each
+/// end's view of it for MIS. `None` where either end cannot be joined.
+pub struct Edge {
+    pub f: Rgb,
+    light_end: Joined,
+    camera_end: Joined,
+}
+
+pub fn edge(scene: &Scene, y: &Vertex, y_prev: &Vertex, z: &Vertex, z_prev: &Vertex) -> Option<Edge> {
+    if !y.can_connect(scene) || !z.can_connect(scene) || z.kind != VertexKind::Surface {
+        return None;
+    }
+    let d = z.p() - y.p();
+    let d2 = d.length_squared();
+    if !(d2 > 0.0) || y.kind != VertexKind::Surface {
+        return None;
+    }
+    // Both ends are surfaces: one direction, each end's view of it.
+    let towards_z = d / d2.sqrt();
+    let light_end = y.join_towards(scene, y_prev, towards_z, TransportMode::Importance);
+    let camera_end = z.join_towards(scene, z_prev, -towards_z, TransportMode::Radiance);
+    Some(Edge { f: light_end.f * camera_end.f / d2, light_end, camera_end })
+}
+
 /// s, t ≥ 2: joins light vertex `light[s − 1]` and camera vertex `camera[t − 1]`.
 pub fn connect_vertices(
     scene: &Scene,
@@ -175,25 +201,14 @@ pub fn connect_vertices(
     w: &impl PathWeight,
 ) -> Rgb {
     let (y, z) = (&light[s - 1], &camera[t - 1]);
-    if !y.can_connect(scene) || !z.can_connect(scene) || z.kind != VertexKind::Surface {
-        return Rgb::BLACK;
-    }
-    let d = z.p() - y.p();
-    let d2 = d.length_squared();
-    if !(d2 > 0.0) || y.kind != VertexKind::Surface {
-        return Rgb::BLACK;
-    }
-    // Both ends are surfaces: one direction, each end's view of it.
-    let towards_z = d / d2.sqrt();
-    let jy = y.join_towards(scene, &light[s - 2], towards_z, TransportMode::Importance);
-    let jz = z.join_towards(scene, &camera[t - 2], -towards_z, TransportMode::Radiance);
-    let c = y.beta * jy.f * jz.f * z.beta / d2;
+    let Some(e) = edge(scene, y, &light[s - 2], z, &camera[t - 2]) else { return Rgb::BLACK };
+    let c = y.beta * e.f * z.beta;
     if c.is_black() || !visible(scene, z, y) {
         return Rgb::BLACK;
     }
     let junction = Junction {
-        light_end: Some(y.end_densities(scene, &jy, &light[s - 2], z)),
-        camera_end: Some(z.end_densities(scene, &jz, &camera[t - 2], y)),
+        light_end: Some(y.end_densities(scene, &e.light_end, &light[s - 2], z)),
+        camera_end: Some(z.end_densities(scene, &e.camera_end, &camera[t - 2], y)),
     };
     c * w.weight_joined(scene, SubPath::new(&light[..s], None), SubPath::new(&camera[..t], None), &junction)
 }

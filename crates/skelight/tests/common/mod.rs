@@ -150,7 +150,7 @@ pub fn every_estimator() -> Vec<(&'static str, u32)> {
         .into_iter()
         .map(|name| {
             let spp = match name {
-                "bpt" | "skelbpt" => 64,
+                "bpt" | "skelbpt" | "icbpt" => 64,
                 "ibpt" => 128,
                 _ => 256,
             };
@@ -226,4 +226,28 @@ pub fn base64(bytes: &[u8]) -> String {
         }
     }
     out
+}
+
+/// The images of a resampling estimator's joins drawn from each distribution, and of the
+/// strategies it does not resample, add up to its render (they see the same random
+/// numbers); every part but those in `may_be_black` contributes.
+pub fn per_distribution_parts_add_up(scene: &Scene, estimator: &str, params: &[(&str, &str)], may_be_black: &[&str]) {
+    let opts = skelight::integrator::RenderOptions { spp: Some(4), time: None, seed: 2, threads: 0 };
+    let image = |only: &str| {
+        let mut p: Vec<(String, String)> = params.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+        p.push(("only".into(), only.into()));
+        let mut i = skelight::integrator::registry::create(estimator, &p).unwrap();
+        skelight::integrator::render(scene, i.as_mut(), &opts, None, |_, _| true).unwrap().film.image()
+    };
+    let all = image("all");
+    let parts: Vec<_> = ["V", "U", "C", "fallback", "unresampled"].iter().map(|o| (o, image(o))).collect();
+    for (name, part) in &parts {
+        println!("{estimator} {name}: mean {:?}", part.mean());
+        assert!(may_be_black.contains(name) || part.mean().luminance() > 0.0, "{name} contributes nothing");
+    }
+    for (i, p) in all.pixels.iter().enumerate() {
+        let sum = parts.iter().fold(skelight::color::Rgb::BLACK, |acc, (_, img)| acc + img.pixels[i]);
+        let d = (sum - *p).luminance().abs();
+        assert!(d <= 1e-4 * p.luminance().abs() + 1e-6, "pixel {i}: parts {sum:?} vs {p:?}");
+    }
 }
