@@ -7,7 +7,7 @@
 mod common;
 
 use common::*;
-use skelight::guided::candidates::{Combination, Draw};
+use skelight::guided::candidates::{uniform_position_probability, uniform_position_start, Combination, Draw};
 use skelight::guided::importance_cache::{CacheInput, ImportanceCache, Nearby};
 use skelight::guided::resampling::Origin;
 use skelight::integrator::mis::{running_sums, AllStrategies, Heuristic};
@@ -47,15 +47,16 @@ fn cache(scene: &Scene, combination: Combination) -> (LightPaths, ImportanceCach
 }
 
 /// For one eye vertex and depth: every (kept record, table position) pair with the
-/// probability of drawing it, (1/k)·p_j(i), found by a uniform number in the middle of each
-/// record's stratum and a fine stratified grid over the table's.
+/// probability of drawing it, π_j·p_j(i) (π_j the exact probability of record j's stratum of
+/// uniform numbers), found by the first number of each record's stratum and a fine
+/// stratified grid over the table's.
 fn pairs(cache: &ImportanceCache, records: &[u32], s: usize) -> Vec<(usize, usize, f64)> {
     let k = records.len();
     let m = cache.eligible(s).len();
     let grid: u64 = 1 << 16;
     let mut found = Vec::new();
     for j in 0..k {
-        let r1 = ((((2 * j + 1) as u64) << 32) / (2 * k as u64)) as u32;
+        let r1 = uniform_position_start(j, k);
         let mut seen = std::collections::HashMap::new();
         for g in 0..grid {
             let (picked, i, p) = cache.pick(records, s, (r1, (g * ((1u64 << 32) / grid) + 3) as u32)).expect("a pick");
@@ -64,7 +65,7 @@ fn pairs(cache: &ImportanceCache, records: &[u32], s: usize) -> Vec<(usize, usiz
             assert_eq!(*seen.entry(i).or_insert(p), p, "one position, two probabilities");
         }
         assert_eq!(seen.len(), m, "record {j}: some candidate is never drawn");
-        found.extend(seen.into_iter().map(|(i, p)| (j, i, p / k as f64)));
+        found.extend(seen.into_iter().map(|(i, p)| (j, i, p * uniform_position_probability(j, k))));
     }
     found
 }
@@ -76,7 +77,7 @@ fn pairs(cache: &ImportanceCache, records: &[u32], s: usize) -> Vec<(usize, usiz
 /// counting as zero: N, not N_s). `draw` returns the same candidate and probability as the
 /// two stages.
 fn check_weights(scene: &Scene, combination: Combination, paths_end_early: bool) {
-    let (paths, cache) = cache(scene, Combination::Max);
+    let (paths, cache) = cache(scene, combination);
     let n = cache.candidates();
     if paths_end_early {
         assert!(
@@ -97,25 +98,24 @@ fn check_weights(scene: &Scene, combination: Combination, paths_end_early: bool)
                 continue;
             }
             cache.nearby(z, &mut nearby);
-            let records = nearby.records();
-            several += (records.len() > 1) as usize;
+            let kept = nearby.records().to_vec();
+            several += (kept.len() > 1) as usize;
+            // The kept records, and lists the kd-tree never returns: a record twice (ties
+            // under max), twice beside another, and none (the fallback).
+            let mut lists = vec![kept.clone(), vec![]];
+            if let Some(&r) = kept.first() {
+                lists.push(vec![r, r]);
+                lists.push(vec![r, r, kept.last().copied().unwrap_or(r)]);
+            }
             for s in 2..=(7 - t).min(cache.depths() + 1) {
-                if records.is_empty() || cache.eligible(s).is_empty() {
+                if cache.eligible(s).is_empty() {
                     continue;
                 }
                 let join = Join { s, camera: &camera, camera_sums: &camera_sums, t, heuristic: Heuristic::Balance };
-                let mut weight = vec![0.0f64; cache.eligible(s).len()];
-                let mut expectation = 0.0f64;
-                for (j, i, q) in pairs(&cache, records, s) {
-                    let Some(divisor) = cache.divisor(records, s, (j, i), combination) else { continue };
-                    weight[i] += q / divisor;
-                    let candidate = cache.eligible(s)[i] as usize;
+                let term = |candidate: usize, divisor: f64| {
                     let draw = Draw { candidate, probability: divisor as f32, origin: Origin::Uniform };
-                    expectation += q * resampled_join(scene, &cache, &draw, &join).luminance() as f64;
-                }
-                for (i, w) in weight.iter().enumerate() {
-                    assert!((w - 1.0).abs() < 1e-9, "t {t}, s {s}, position {i}: weighted {w} times");
-                }
+                    resampled_join(scene, &cache, &draw, &join).luminance() as f64
+                };
                 let mut mean = 0.0f64;
                 for c in 0..n {
                     let light = paths.path(cache.paths[c] as usize);
@@ -130,20 +130,47 @@ fn check_weights(scene: &Scene, combination: Combination, paths_end_early: bool)
                     };
                     mean += connect_vertices(scene, light, s, &camera, t, &w).luminance() as f64 / n as f64;
                 }
-                // f32 rounding of c/(N·q) against c/N, summed in f64.
-                assert!(
-                    (expectation - mean).abs() <= 1e-5 * mean.abs() + 1e-12,
-                    "t {t}, s {s}: expectation over draws {expectation} vs mean over candidates {mean}"
-                );
-                checked += (mean > 0.0) as usize;
+                for records in &lists {
+                    let m = cache.eligible(s).len();
+                    let mut expectation = 0.0f64;
+                    if records.is_empty() {
+                        // The fallback: each position with its exact probability.
+                        for i in 0..m {
+                            let d = cache.draw(records, s, (0, uniform_position_start(i, m)), combination).unwrap();
+                            assert_eq!((d.candidate, d.origin), (cache.eligible(s)[i] as usize, Origin::Fallback));
+                            assert_eq!(d.probability, uniform_position_probability(i, m) as f32);
+                            expectation += uniform_position_probability(i, m) * term(d.candidate, d.probability as f64);
+                        }
+                    } else {
+                        let mut weight = vec![0.0f64; m];
+                        for (j, i, q) in pairs(&cache, records, s) {
+                            let Some(divisor) = cache.divisor(records, s, (j, i), combination) else { continue };
+                            weight[i] += q / divisor;
+                            expectation += q * term(cache.eligible(s)[i] as usize, divisor);
+                        }
+                        for (i, w) in weight.iter().enumerate() {
+                            assert!(
+                                (w - 1.0).abs() < 1e-9,
+                                "t {t}, s {s}, {records:?}, position {i}: weighted {w} times"
+                            );
+                        }
+                    }
+                    // f32 rounding of c/(N·q) against c/N, summed in f64.
+                    assert!(
+                        (expectation - mean).abs() <= 1e-5 * mean.abs() + 1e-12,
+                        "t {t}, s {s}, {records:?}: expectation over draws {expectation} vs mean over candidates {mean}"
+                    );
+                }
+                checked += (mean > 0.0 && !kept.is_empty()) as usize;
                 // The one-call draw matches its two stages.
                 let random = (rng.next_u32(), rng.next_u32());
-                let (j, i, _) = cache.pick(records, s, random).unwrap();
-                let two_stage = cache.divisor(records, s, (j, i), combination);
-                let draw = cache.draw(records, s, random, combination);
-                assert_eq!(draw.map(|d| d.probability), two_stage.map(|p| p as f32));
-                if let Some(d) = draw {
-                    assert_eq!(d.candidate, cache.eligible(s)[i] as usize);
+                if let Some((j, i, _)) = cache.pick(&kept, s, random) {
+                    let two_stage = cache.divisor(&kept, s, (j, i), combination);
+                    let draw = cache.draw(&kept, s, random, combination);
+                    assert_eq!(draw.map(|d| d.probability), two_stage.map(|p| p as f32));
+                    if let Some(d) = draw {
+                        assert_eq!(d.candidate, cache.eligible(s)[i] as usize);
+                    }
                 }
             }
         }
@@ -151,10 +178,6 @@ fn check_weights(scene: &Scene, combination: Combination, paths_end_early: bool)
     println!("{checked} joins with light checked, {several} eye vertices with several records");
     assert!(checked >= 20, "too few joins with light checked: {checked}");
     assert!(several >= 10, "too few eye vertices combine records: {several}");
-    // No record: the uniform fallback over the eligible candidates.
-    let d = cache.draw(&[], 2, (0, 1 << 31), combination).expect("a fallback draw");
-    assert_eq!(d.origin, Origin::Fallback);
-    assert_eq!(d.probability, 1.0 / cache.eligible(2).len() as f32);
 }
 
 #[test]

@@ -189,12 +189,14 @@ fn estimators_agree_on_veach_door() {
     estimators_agree(&scene, &every_estimator());
 }
 
-/// … and of sibenik lit by the seeds' two lights (skelpt must not be biased by a scene
-/// whose skeleton runs through a cathedral's nave and aisles).
+/// … and of sibenik lit by the seeds' two lights (the skeleton-guided estimators must not be
+/// biased by a scene whose skeleton runs through a cathedral's nave and aisles, nor icbpt
+/// by records spread through it).
 #[test]
 fn estimators_agree_on_sibenik() {
     let scene = load_small(&repo_scene("sibenik-two-lights.toml"), 48, 32);
-    estimators_agree(&scene, &[("pt", 128), ("bpt", 32), ("skelpt", 128)]);
+    let runs = [("pt", 128), ("bpt", 32), ("skelpt", 128), ("skelbpt", 32), ("icbpt", 32)];
+    estimators_agree(&scene, &runs);
 }
 
 /// `raw_textures` reads a texture's bytes as linear reflectances, as the pg2015 authors'

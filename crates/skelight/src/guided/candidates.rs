@@ -97,10 +97,23 @@ impl Table {
 }
 
 /// Uniform draw among `m` positions with the 32-bit integer `r`: r·m / 2³² puts ⌊2³²/m⌋ or
-/// ⌈2³²/m⌉ values of r on each, within m/2³² (relatively) of 1/m.
+/// ⌈2³²/m⌉ values of r on each ([`uniform_position_probability`] says which).
 #[inline]
 pub fn uniform_position(r: u32, m: usize) -> usize {
     ((r as u64 * m as u64) >> 32) as usize
+}
+
+/// The exact probability that [`uniform_position`] returns `i` among `m` (within m/2³² of
+/// 1/m, relatively): the r from ⌈i·2³²/m⌉ on return at least i.
+#[inline]
+pub fn uniform_position_probability(i: usize, m: usize) -> f64 {
+    let start = |i: u64| (i << 32).div_ceil(m as u64);
+    (start(i as u64 + 1) - start(i as u64)) as f64 / TWO_32
+}
+
+/// The smallest 32-bit integer for which [`uniform_position`] returns `i` among `m`.
+pub fn uniform_position_start(i: usize, m: usize) -> u32 {
+    ((i as u64) << 32).div_ceil(m as u64) as u32
 }
 
 /// One iteration's candidates.
@@ -201,11 +214,8 @@ impl Candidates {
             return None;
         }
         let i = uniform_position(r, eligible.len());
-        Some(Draw {
-            candidate: eligible[i] as usize,
-            probability: 1.0 / eligible.len() as f32,
-            origin: Origin::Fallback,
-        })
+        let probability = uniform_position_probability(i, eligible.len()) as f32;
+        Some(Draw { candidate: eligible[i] as usize, probability, origin: Origin::Fallback })
     }
 
     /// Bytes held: the copied vertices and sums, the indices and eligible lists.

@@ -31,7 +31,7 @@
 
 use rayon::prelude::*;
 
-use super::candidates::{uniform_position, Candidates, Combination, Draw, Table};
+use super::candidates::{uniform_position, uniform_position_probability, Candidates, Combination, Draw, Table};
 use super::kdtree::KdTree;
 use super::resampling::BuildStats;
 use crate::integrator::mis::Heuristic;
@@ -186,9 +186,10 @@ impl ImportanceCache {
     }
 
     /// What the estimator divides by (before N) for position `i` drawn from
-    /// `records[picked]`'s table: under the max heuristic, its probability over the number
-    /// of records if that record gives it the highest probability among them (the first
-    /// such), and `None` (no weight) otherwise; under balance, the mixture's probability.
+    /// `records[picked]`'s table, with π_j the exact probability of picking record j
+    /// ([`uniform_position_probability`], 1/k to within k·2⁻³²): under the max heuristic,
+    /// π·p of the picked record if it gives the highest π_j·p_j(i) among them (the first
+    /// such), and `None` (no weight) otherwise; under balance, the mixture Σ_j π_j·p_j(i).
     #[inline]
     pub fn divisor(
         &self,
@@ -197,14 +198,14 @@ impl ImportanceCache {
         (picked, i): (usize, usize),
         combination: Combination,
     ) -> Option<f64> {
-        let p = |j: usize| self.table(records[j], s).probability(i);
-        let k = records.len() as f64;
+        let k = records.len();
+        let q = |j: usize| uniform_position_probability(j, k) * self.table(records[j], s).probability(i);
         match combination {
             Combination::Max => {
-                let winner = (1..records.len()).fold(0, |best, j| if p(j) > p(best) { j } else { best });
-                (winner == picked).then(|| p(picked) / k)
+                let winner = (1..k).fold(0, |best, j| if q(j) > q(best) { j } else { best });
+                (winner == picked).then(|| q(picked))
             }
-            Combination::Balance => Some((0..records.len()).map(p).sum::<f64>() / k),
+            Combination::Balance => Some((0..k).map(q).sum::<f64>()),
         }
     }
 
@@ -230,13 +231,14 @@ fn facing(n: Vec3, wi: Vec3) -> Vec3 {
     }
 }
 
-/// The vertices (t ≥ 2, joinable) of `count` eye sub-paths through a jittered grid over
-/// the image, the grid's cells as square as the image allows.
+/// The vertices (t ≥ 2, joinable) of `count` eye sub-paths through the cells of a jittered
+/// grid over the image, its cells as square as the image allows (the last row partly
+/// filled).
 fn place_records(scene: &Scene, count: usize, max_depth: i32, seed: u64, iteration: u64) -> Vec<Record> {
     let (w, h) = (scene.settings.width as f32, scene.settings.height as f32);
     let rows = ((count as f32 * h / w).sqrt().round() as usize).max(1);
     let cols = count.div_ceil(rows);
-    (0..rows * cols)
+    (0..count)
         .into_par_iter()
         .map(|cell| {
             let mut rng = Rng::new(seed ^ RECORD_STREAM, cell as u64, iteration);
@@ -277,7 +279,7 @@ fn build_table(
         let path = pool.path(c as usize);
         let y = &path[s - 1];
         let contribution = edge(scene, y, &path[s - 2], &record.at, &record.prev)
-            .map_or(0.0, |e| (y.beta * e.f).luminance().max(0.0) as f64);
+            .map_or(0.0, |e| (y.beta * e.light_end.f * e.camera_end.f / e.d2).luminance().max(0.0) as f64);
         // Only a join that carries light needs its visibility (V is U restricted to it).
         let sees = contribution > 0.0 && {
             rays += 1;

@@ -54,6 +54,10 @@ pub const PARAMS: &[ParamSpec] = &[
     resampled::ONLY,
 ];
 
+/// The most the records' tables may take per iteration (a pass holds up to 64 iterations,
+/// fewer as the image grows: `render`'s pass is about 65 536 samples).
+pub const TABLE_BUDGET: usize = 512 << 20;
+
 pub struct IcBpt {
     bpt: Bpt,
     pub candidates: usize,
@@ -107,9 +111,19 @@ impl IcBpt {
         }
     }
 
-    /// Eye sub-paths traced per iteration for the records of a `width` × `height` image.
-    pub fn record_paths(&self, width: usize, height: usize) -> usize {
-        ((self.density * (width * height) as f64).ceil() as usize).max(1)
+    /// Eye sub-paths traced per iteration for the records: d·pixels (at least one), capped
+    /// so that the tables stay under [`TABLE_BUDGET`] bytes per iteration; and whether the
+    /// cap applied. A table takes N × 9 bytes, a record one per light depth (at most
+    /// max depth − 1), an eye sub-path at most max depth records (16 counted when unlimited).
+    pub fn record_paths(&self, scene: &Scene) -> (usize, bool) {
+        let wanted = ((self.density * (scene.settings.width * scene.settings.height) as f64).ceil() as usize).max(1);
+        let depth = match self.bpt.max_depth(scene) {
+            d if d < 0 => 16,
+            d => d.max(2) as usize,
+        };
+        let per_path = depth * (depth - 1) * self.candidates * 9;
+        let cap = (TABLE_BUDGET / per_path).max(1);
+        (wanted.min(cap), wanted > cap)
     }
 
     /// What the iterations' builds cost so far, and the most memory one held.
@@ -158,10 +172,12 @@ impl Integrator for IcBpt {
         let mut prep = Preparation::default();
         self.resamples = !scene.lights.is_empty();
         if self.resamples {
-            let paths = self.record_paths(scene.settings.width, scene.settings.height);
+            let (paths, capped) = self.record_paths(scene);
             prep.notes.push(format!(
-                "importance records: {paths} eye sub-paths per iteration (d = {}), {} candidates",
-                self.density, self.candidates
+                "importance records: {paths} eye sub-paths per iteration (d = {}{}), {} candidates",
+                self.density,
+                if capped { ", capped to keep the tables under 512 MB per iteration" } else { "" },
+                self.candidates
             ));
         } else {
             prep.notes.push("the scene has no lights: plain bpt".into());
@@ -185,11 +201,11 @@ impl Integrator for IcBpt {
         let (light_paths, cache) = into.with_extra::<ImportanceCache>();
         let max_depth = self.bpt.max_depth(scene);
         let input = CacheInput {
-            record_paths: self.record_paths(scene.settings.width, scene.settings.height),
+            record_paths: self.record_paths(scene).0,
             candidates: self.candidates,
             combination: self.combination,
             heuristic: self.bpt.heuristic,
-            deepest: usize::try_from(max_depth - 1).unwrap_or(usize::MAX),
+            deepest: resampled::deepest_join(max_depth),
             max_depth,
             seed,
             iteration: index,

@@ -113,6 +113,16 @@ pub fn build_report(stats: &BuildStats, bytes: usize, places: &str) -> Vec<Strin
     )]
 }
 
+/// The deepest light vertex a join with t ≥ 2 can use at `max_depth` (negative: unlimited):
+/// tables stop there.
+pub fn deepest_join(max_depth: i32) -> usize {
+    if max_depth < 0 {
+        usize::MAX
+    } else {
+        (max_depth - 1).max(0) as usize
+    }
+}
+
 /// Camera vertex z_t of `paths` if a resampled light vertex can be joined to it (a surface
 /// with a non-specular part).
 pub fn joinable<'a>(scene: &Scene, paths: &PixelPaths<'a>, t: usize) -> Option<&'a Vertex> {

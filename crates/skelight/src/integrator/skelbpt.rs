@@ -213,7 +213,7 @@ impl Integrator for SkeletonBpt {
             candidates: self.candidates,
             combination: self.combination,
             heuristic: self.bpt.heuristic,
-            deepest: usize::try_from(self.bpt.max_depth(scene) - 1).unwrap_or(usize::MAX),
+            deepest: resampled::deepest_join(self.bpt.max_depth(scene)),
             seed,
             iteration: index,
         };

@@ -166,13 +166,14 @@ pub fn light_hits_lens(scene: &Scene, light: &[Vertex], hit: &LensHit, w: &impl 
 }
 
 /// The edge joining two surface vertices, light-side `y` (reached from `y_prev`) and
-/// camera-side `z` (reached from `z_prev`): each end's BSDF·|cos| towards the other over
-/// the squared distance (the unweighted, unoccluded path throughput it adds), and each
-/// end's view of it for MIS. `None` where either end cannot be joined.
+/// camera-side `z` (reached from `z_prev`): each end's BSDF·|cos| towards the other and the
+/// squared distance (the unweighted, unoccluded throughput it adds is
+/// `light_end.f · camera_end.f / d2`), and each end's view of it for MIS. `None` where
+/// either end cannot be joined.
 pub struct Edge {
-    pub f: Rgb,
-    light_end: Joined,
-    camera_end: Joined,
+    pub light_end: Joined,
+    pub camera_end: Joined,
+    pub d2: f32,
 }
 
 pub fn edge(scene: &Scene, y: &Vertex, y_prev: &Vertex, z: &Vertex, z_prev: &Vertex) -> Option<Edge> {
@@ -188,7 +189,7 @@ pub fn edge(scene: &Scene, y: &Vertex, y_prev: &Vertex, z: &Vertex, z_prev: &Ver
     let towards_z = d / d2.sqrt();
     let light_end = y.join_towards(scene, y_prev, towards_z, TransportMode::Importance);
     let camera_end = z.join_towards(scene, z_prev, -towards_z, TransportMode::Radiance);
-    Some(Edge { f: light_end.f * camera_end.f / d2, light_end, camera_end })
+    Some(Edge { light_end, camera_end, d2 })
 }
 
 /// s, t ≥ 2: joins light vertex `light[s − 1]` and camera vertex `camera[t − 1]`.
@@ -202,7 +203,7 @@ pub fn connect_vertices(
 ) -> Rgb {
     let (y, z) = (&light[s - 1], &camera[t - 1]);
     let Some(e) = edge(scene, y, &light[s - 2], z, &camera[t - 2]) else { return Rgb::BLACK };
-    let c = y.beta * e.f * z.beta;
+    let c = y.beta * e.light_end.f * e.camera_end.f * z.beta / e.d2;
     if c.is_black() || !visible(scene, z, y) {
         return Rgb::BLACK;
     }
