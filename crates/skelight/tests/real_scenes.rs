@@ -24,6 +24,7 @@ fn every_real_scene_loads_and_renders() {
         repo_scene("corridor-raw.toml"),
         repo_scene("sibenik-two-lights.toml"),
         repo_scene("door-corner.toml"),
+        repo_scene("sponza-directional.toml"),
     ];
     let mut pt = by_name("pt").unwrap();
     for path in scenes {
@@ -197,6 +198,45 @@ fn estimators_agree_on_sibenik() {
     let scene = load_small(&repo_scene("sibenik-two-lights.toml"), 48, 32);
     let runs = [("pt", 128), ("bpt", 32), ("skelpt", 128), ("skelbpt", 32), ("icbpt", 32)];
     estimators_agree(&scene, &runs);
+}
+
+/// … and of the Sponza atrium in the seeds' lighting, its arcade lit only indirectly.
+#[test]
+fn estimators_agree_on_sponza() {
+    let scene = load_small(&repo_scene("sponza-directional.toml"), 48, 24);
+    let runs = [("pt", 256), ("bpt", 64), ("skelpt", 256), ("skelbpt", 64), ("icbpt", 64)];
+    estimators_agree(&scene, &runs);
+}
+
+/// The seeds' Sponza configuration over the Mitsuba Sponza: the TOML takes the XML's shapes
+/// and materials, overrides the floor by its BSDF id, leaves out the XML's own light (an
+/// emissive sphere) with `drop_emitters`, and adds the directional light.
+#[test]
+fn sponza_configuration_takes_the_mitsuba_shapes_with_its_own_light_and_floor() {
+    let desc = skelight::scene::load::load_description(&repo_scene("sponza-directional.toml"), &[]).unwrap();
+    let xml =
+        skelight::scene::load::load_description(&shared_dir().join("scenes/sponza-dabrovic/sponza.xml"), &[]).unwrap();
+    assert_eq!(desc.meshes.len(), xml.meshes.len() - 1, "the XML's emissive sphere is left out");
+    assert!(desc.meshes.iter().all(|m| m.emission.is_none()));
+    assert!(matches!(desc.lights[..], [skelight::light::Light::Directional { .. }]), "{:?} lights", desc.lights.len());
+    let floor = desc.materials.iter().find(|m| m.name == "sp_00_pod").expect("the floor material");
+    assert!(matches!(floor.bsdf, skelight::material::Bsdf::Phong(_)), "the floor is not made glossy");
+    assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
+    // A misspelt override is reported; OBJ-only options on an XML are refused, naming the file.
+    let dir = std::env::temp_dir().join("skelight-sponza-toml");
+    std::fs::create_dir_all(&dir).unwrap();
+    let xml_path = shared_dir().join("scenes/sponza-dabrovic/sponza.xml");
+    let write = |name: &str, extra: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, format!("[[mesh]]\nfile = {:?}\n{extra}", xml_path.display().to_string())).unwrap();
+        p
+    };
+    let typo = write("typo.toml", "[mesh.materials.sp_00_pdo]\ntype = \"diffuse\"\n");
+    let desc = skelight::scene::load::load_description(&typo, &[]).unwrap();
+    assert!(desc.warnings.iter().any(|w| w.contains("sp_00_pdo")), "{:?}", desc.warnings);
+    let moved = write("moved.toml", "transform = { translate = [1.0, 0.0, 0.0] }\n");
+    let err = skelight::scene::load::load_description(&moved, &[]).unwrap_err().to_string();
+    assert!(err.contains("moved.toml") && err.contains("transform"), "{err}");
 }
 
 /// `raw_textures` reads a texture's bytes as linear reflectances, as the pg2015 authors'

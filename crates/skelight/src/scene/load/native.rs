@@ -8,6 +8,9 @@
 //! [integrator] # max_depth, rr_depth
 //! [camera]     # origin, target, up, fov, fov_axis, aperture_radius, focus_distance
 //! [[mesh]]     # file, face_normals, transform = { translate, scale, rotate = [x, y, z, degrees] }
+//!              # file may also be a Mitsuba scene (.xml): its shapes and materials (BSDF ids
+//!              # are the names overrides match); its camera, film and lights are not taken,
+//!              # and with drop_emitters = true neither are its emissive shapes
 //! [mesh.materials.NAME]  # type = "diffuse" | "phong" | "mirror" | "glass", color, texture,
 //!                        # specular, specular_texture, exponent, ior, two_sided,
 //!                        # raw_textures (stored values are linear, not sRGB; nearest lookup)
@@ -91,9 +94,12 @@ struct MeshSection {
     #[serde(default)]
     face_normals: bool,
     transform: Option<TransformSection>,
-    /// Material overrides by MTL name; "*" applies to all.
+    /// Material overrides by MTL name (a Mitsuba file: BSDF id); "*" applies to all.
     #[serde(default)]
     materials: HashMap<String, MaterialSection>,
+    /// A Mitsuba file's emissive shapes are left out (its other lights always are).
+    #[serde(default)]
+    drop_emitters: bool,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -191,7 +197,13 @@ pub fn load_mesh_file(path: &Path) -> Result<SceneDescription, LoadError> {
     let mut ctx = Ctx { path, dir: path.parent().unwrap_or(Path::new(".")).to_path_buf(), bitmaps: HashMap::new() };
     let mut desc = SceneDescription::default();
     let name = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
-    let section = MeshSection { file: name, face_normals: false, transform: None, materials: HashMap::new() };
+    let section = MeshSection {
+        file: name,
+        face_normals: false,
+        transform: None,
+        materials: HashMap::new(),
+        drop_emitters: false,
+    };
     load_mesh(&mut ctx, &section, &mut desc)?;
     if desc.meshes.iter().all(|m| m.emission.is_none()) {
         desc.warnings
@@ -349,20 +361,14 @@ fn load_mesh(ctx: &mut Ctx, m: &MeshSection, desc: &mut SceneDescription) -> Res
             (obj.groups.into_iter().map(|g| (g.material, g.data)).collect(), mtl)
         }
         "ply" => (vec![(None, super::ply::load_ply(&file)?)], HashMap::new()),
-        other => return Err(ctx.err(format!("mesh '{}': unsupported format '.{other}' (obj or ply)", m.file))),
+        "xml" => return load_mitsuba_shapes(ctx, m, &file, desc),
+        other => return Err(ctx.err(format!("mesh '{}': unsupported format '.{other}' (obj, ply or xml)", m.file))),
     };
-    // An override whose name matches no `usemtl` is a typo: those faces would silently take
-    // the MTL's material or a grey default.
-    let names: Vec<String> = groups.iter().map(|(n, _)| n.clone().unwrap_or_default()).collect();
-    let mut unused: Vec<&String> = m.materials.keys().filter(|k| *k != "*" && !names.contains(k)).collect();
-    unused.sort();
-    for key in unused {
-        desc.warnings.push(format!(
-            "mesh '{}': material override '{key}' matches none of the file's materials ({})",
-            m.file,
-            names.join(", ")
-        ));
+    if m.drop_emitters {
+        return Err(ctx.err(format!("mesh '{}': drop_emitters applies to Mitsuba (.xml) files", m.file)));
     }
+    let names: Vec<String> = groups.iter().map(|(n, _)| n.clone().unwrap_or_default()).collect();
+    warn_unused_overrides(m, &names, desc);
     for (name, data) in groups {
         let key = name.clone().unwrap_or_default();
         let (material, alpha, emission) = match m.materials.get(&key).or_else(|| m.materials.get("*")) {
@@ -387,6 +393,59 @@ fn load_mesh(ctx: &mut Ctx, m: &MeshSection, desc: &mut SceneDescription) -> Res
         desc.materials.push(material);
         desc.meshes.push(mesh);
     }
+    Ok(())
+}
+
+/// An override whose name matches none of the file's materials is a typo: those faces would
+/// silently keep the file's material or a grey default.
+fn warn_unused_overrides(m: &MeshSection, names: &[String], desc: &mut SceneDescription) {
+    let mut unused: Vec<&String> = m.materials.keys().filter(|k| *k != "*" && !names.contains(k)).collect();
+    unused.sort();
+    for key in unused {
+        desc.warnings.push(format!(
+            "mesh '{}': material override '{key}' matches none of the file's materials ({})",
+            m.file,
+            names.join(", ")
+        ));
+    }
+}
+
+/// A Mitsuba scene's shapes and materials, its materials overridden by BSDF id (the seeds'
+/// Sponza configuration over the Mitsuba Sponza). Its sensor, film and lights other than
+/// emissive shapes are not taken: this file supplies them.
+fn load_mitsuba_shapes(
+    ctx: &mut Ctx,
+    m: &MeshSection,
+    file: &Path,
+    desc: &mut SceneDescription,
+) -> Result<(), LoadError> {
+    if m.transform.is_some() || m.face_normals {
+        return Err(ctx.err(format!("mesh '{}': transform and face_normals apply to OBJ and PLY files", m.file)));
+    }
+    if !file.exists() {
+        return Err(ctx.err(format!("mesh '{}': file not found", m.file)));
+    }
+    let root = file.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let sub = super::mitsuba::Loader::new(&root, &[]).load(file)?;
+    let names: Vec<String> = sub.materials.iter().map(|x| x.name.clone()).collect();
+    warn_unused_overrides(m, &names, desc);
+    let offset = desc.materials.len() as u32;
+    for material in sub.materials {
+        let chosen = match m.materials.get(&material.name).or_else(|| m.materials.get("*")) {
+            Some(o) => override_material(ctx, &material.name, o)?,
+            None => material,
+        };
+        desc.materials.push(chosen);
+    }
+    for mut mesh in sub.meshes {
+        if m.drop_emitters && mesh.emission.is_some() {
+            continue;
+        }
+        mesh.material += offset;
+        mesh.name = format!("{}:{}", m.file, mesh.name);
+        desc.meshes.push(mesh);
+    }
+    desc.warnings.extend(sub.warnings.into_iter().filter(|w| !w.contains("no sensor")));
     Ok(())
 }
 
