@@ -54,7 +54,7 @@ fn main() {
     });
     scene.set_resolution(w, h);
     let max_depth = scene.settings.max_depth;
-    let deepest = if max_depth < 0 { usize::MAX } else { (max_depth - 1).max(0) as usize };
+    let deepest = skelight::integrator::resampled::deepest_join(max_depth);
     let mut skel = SkeletonBpt::from_params(&Params::new("skelbpt", skelbpt::PARAMS, &[]).unwrap());
     skel.prepare(&scene).expect("skelbpt prepares");
     let mut paths = LightPaths::default();

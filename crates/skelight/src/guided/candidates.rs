@@ -23,6 +23,24 @@ pub enum Combination {
     Balance,
 }
 
+impl Combination {
+    /// From a parameter's value ("balance"; anything else the registry let through: "max").
+    pub fn parse(name: &str) -> Combination {
+        if name == "balance" {
+            Combination::Balance
+        } else {
+            Combination::Max
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Combination::Max => "max",
+            Combination::Balance => "balance",
+        }
+    }
+}
+
 /// One resampled candidate.
 #[derive(Clone, Copy, Debug)]
 pub struct Draw {

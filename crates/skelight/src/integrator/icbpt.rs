@@ -78,22 +78,6 @@ struct TileScratch {
     nearby: Nearby,
 }
 
-fn combination(name: &str) -> Combination {
-    if name == "balance" {
-        Combination::Balance
-    } else {
-        Combination::Max
-    }
-}
-
-fn combination_name(c: Combination) -> &'static str {
-    if c == Combination::Balance {
-        "balance"
-    } else {
-        "max"
-    }
-}
-
 impl IcBpt {
     pub fn from_params(p: &Params) -> IcBpt {
         let only = Only::from_params(p);
@@ -103,8 +87,8 @@ impl IcBpt {
             bpt: Bpt { max_depth: None, heuristic, only: recorded },
             candidates: p.int("candidates") as usize,
             density: p.float("density"),
-            combination: combination(p.choice("combination")),
-            records: combination(p.choice("records")),
+            combination: Combination::parse(p.choice("combination")),
+            records: Combination::parse(p.choice("records")),
             only,
             resamples: false,
             stats: resampled::BuildLog::default(),
@@ -160,8 +144,8 @@ impl Integrator for IcBpt {
             "icbpt candidates={} density={} combination={} records={} heuristic={} only={}",
             self.candidates,
             self.density,
-            combination_name(self.combination),
-            combination_name(self.records),
+            self.combination.name(),
+            self.records.name(),
             format!("{:?}", self.bpt.heuristic).to_lowercase(),
             self.only.name(),
         )

@@ -114,7 +114,7 @@ impl SkeletonBpt {
             bpt: Bpt { max_depth: None, heuristic, only: recorded },
             candidates: p.int("candidates") as usize,
             acceptance: p.float("acceptance"),
-            combination: if p.choice("combination") == "balance" { Combination::Balance } else { Combination::Max },
+            combination: Combination::parse(p.choice("combination")),
             resolution: p.int("resolution") as usize,
             only,
             prepared: None,
@@ -165,7 +165,7 @@ impl Integrator for SkeletonBpt {
             "skelbpt candidates={} acceptance={} combination={} resolution={} heuristic={} only={only}",
             self.candidates,
             self.acceptance,
-            if self.combination == Combination::Max { "max" } else { "balance" },
+            self.combination.name(),
             self.resolution,
             format!("{:?}", self.bpt.heuristic).to_lowercase(),
         )
