@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs the whole test suite: formatting, lints, unit tests, and the statistical tests
-# against the conformance references in ../shared (release mode: they render images).
+# against the conformance references in ../shared (release mode: they render images), and
+# the Python package's tests in a venv it makes (.venv-py; needs python3 and PyPI).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! command -v cargo >/dev/null; then
@@ -25,7 +26,9 @@ fi
 
 cargo fmt --all -- --check
 cargo clippy --all-targets --release -- -D warnings
-cargo test --release --workspace
+cargo test --release --workspace --exclude skelight-py   # its tests are in Python, below
+# The Python package (import skelight) and rendering on a Dask LocalCluster.
+./scripts/python.sh
 if [ -n "$embree" ]; then
     cargo clippy --all-targets --release --features embree -p skelight -p skelight-cli -p skelight-shape -- -D warnings
     cargo test --release -p skelight --features embree --lib geometry

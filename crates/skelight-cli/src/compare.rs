@@ -8,27 +8,10 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use skelight::color::{rgb, Rgb};
-use skelight::eval::{self, Metrics};
+use skelight::eval;
 use skelight::imageio::Image;
-use skelight::integrator::{self, RenderOptions};
-use skelight::scene::Scene;
 
-/// One error measurement during a run.
-#[derive(Clone, Debug)]
-pub struct Point {
-    pub iteration: usize,
-    pub spp: u32,
-    pub seconds: f64,
-    pub metrics: Metrics,
-}
-
-pub struct Series {
-    pub name: String,
-    pub points: Vec<Point>,
-    pub image: Image,
-    /// Seconds of the estimator's preparation (part of its time budget).
-    pub preparation: f64,
-}
+pub use skelight::compare::{metric, run, time_to_error, Point, Series};
 
 pub struct Study {
     pub scene_label: String,
@@ -40,69 +23,12 @@ pub struct Study {
     pub series: Vec<Series>,
 }
 
-/// Runs each estimator in turn for the same wall time, measuring the error against
-/// `reference` after every pass (at most once per `every`).
-pub fn run(
-    scene: &Scene,
-    names: &[String],
-    reference: &Image,
-    base: &RenderOptions,
-    every: Duration,
-    quiet: bool,
-) -> Result<Vec<Series>> {
-    let time = base.time.context("a comparison needs a time budget")?;
-    let mut out: Vec<Series> = Vec::new();
-    for name in names {
-        let (estimator, params) = integrator::registry::parse_spec(name)?;
-        let mut integ = integrator::registry::create(&estimator, &params)?;
-        // The same estimator twice (e.g. to see run-to-run spread) gets distinct file names.
-        let repeats = out.iter().filter(|s| s.name == *name || s.name.starts_with(&format!("{name}#"))).count();
-        let label = if repeats == 0 { name.clone() } else { format!("{name}#{}", repeats + 1) };
-        let opts = RenderOptions { spp: None, time: Some(time), ..base.clone() };
-        let mut points = Vec::new();
-        let mut last: Option<f64> = None;
-        let mut failure = None;
-        let r = integrator::render(scene, integ.as_mut(), &opts, None, |p, film| {
-            let t = p.elapsed.as_secs_f64();
-            if last.is_none_or(|l| t - l >= every.as_secs_f64()) {
-                match eval::metrics(&film.image(), reference) {
-                    Ok(metrics) => points.push(Point { iteration: points.len(), spp: p.spp_done, seconds: t, metrics }),
-                    Err(e) => failure = Some(e),
-                }
-                last = Some(t);
-            }
-            if !quiet {
-                eprint!("\r{name}: {:.1}/{:.0} s, {} spp   ", t, time.as_secs_f64(), p.spp_done);
-            }
-            failure.is_none()
-        })?;
-        if let Some(e) = failure {
-            return Err(e.into());
-        }
-        if !quiet {
-            eprintln!();
-        }
-        let image = r.film.image();
-        let metrics = eval::metrics(&image, reference)?;
-        if points.last().is_none_or(|p| p.spp != r.spp) {
-            points.push(Point { iteration: points.len(), spp: r.spp, seconds: r.elapsed.as_secs_f64(), metrics });
-        }
-        out.push(Series { name: label, points, image, preparation: r.preparation.elapsed.as_secs_f64() });
-    }
-    Ok(out)
-}
-
 const COLORS: [&str; 6] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf"];
 
 fn color_rgb(i: usize) -> Rgb {
     let h = COLORS[i % COLORS.len()];
     let c = |k: usize| u8::from_str_radix(&h[k..k + 2], 16).unwrap_or(0) as f32 / 255.0;
     rgb(c(1), c(3), c(5))
-}
-
-/// The plotted metric: relMSE (max over RGB), the seeds' headline measure.
-fn metric(p: &Point) -> f64 {
-    p.metrics.relmse
 }
 
 fn log_bounds(series: &[Series], f: impl Fn(&Point) -> f64) -> (f64, f64) {
@@ -222,24 +148,6 @@ pub fn plot_png(series: &[Series]) -> Image {
         line(&mut img, (w as f64 - 1.4 * m - 60.0, y), (w as f64 - 1.4 * m - 46.0, y), color_rgb(i));
     }
     img
-}
-
-/// Time at which a series first reaches `target` error (log-log interpolation).
-pub fn time_to_error(points: &[Point], target: f64) -> Option<f64> {
-    let mut prev: Option<&Point> = None;
-    for p in points {
-        if metric(p) <= target {
-            return Some(match prev {
-                Some(q) if metric(q) > target && metric(p) > 0.0 && q.seconds > 0.0 => {
-                    let f = (target.ln() - metric(q).ln()) / (metric(p).ln() - metric(q).ln());
-                    (q.seconds.ln() + f * (p.seconds.ln() - q.seconds.ln())).exp()
-                }
-                _ => p.seconds,
-            });
-        }
-        prev = Some(p);
-    }
-    None
 }
 
 /// Time each estimator needs to reach one target error, and its speed-up over the first.

@@ -17,6 +17,7 @@ use skelight::eval;
 use skelight::imageio::Image;
 use skelight::integrator::mis::Heuristic;
 use skelight::integrator::{self, RenderOptions};
+use skelight::job::JobSpec;
 use skelight::scene::{self, Scene};
 use skelight_shape::pipeline::{AnalysisSettings, Resolution};
 use skelight_shape::thinning::EdgeConstraint;
@@ -435,19 +436,18 @@ pub(crate) fn write_text(path: &Path, text: &str) -> Result<()> {
 
 /// Long render that checkpoints to OUT.exr.ckpt and resumes from it after an interruption.
 fn reference(args: ReferenceArgs) -> Result<()> {
-    let job = Job::new(
-        args.scene.as_deref(),
-        &args.define,
-        &args.setup,
-        &args.integrator,
-        &args.params,
-        args.spp,
-        args.time,
-        args.seed,
-    )?;
-    if job.opts.spp.is_none() && job.opts.time.is_none() {
+    if args.spp.is_none() && args.time.is_none() {
         bail!("give --time or --spp");
     }
+    let spec = JobSpec {
+        integrator: args.integrator.clone(),
+        params: args.params.clone(),
+        spp: args.spp,
+        time: args.time,
+        seed: args.seed,
+        ..JobSpec::default()
+    };
+    let job = Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
     let ckpt_path = PathBuf::from(format!("{}.ckpt", args.output.display()));
     let key = job.key();
     let mut elapsed_before = Duration::ZERO;
@@ -479,8 +479,8 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         }
         Ok(())
     })?;
-    save(&r.film, r.spp, r.elapsed)?;
-    let img = write_outputs(&r.film, r.spp, &args.output, 0.0)?;
+    save(&r.film, r.spp(), r.elapsed)?;
+    let img = write_outputs(&r.film, r.spp(), &args.output, 0.0)?;
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
     eprintln!("checkpoint kept at {} (rerun with a larger --spp or --time to extend)", ckpt_path.display());
     Ok(())
@@ -500,7 +500,23 @@ fn compare_cmd(a: CompareArgs) -> Result<()> {
         bail!("--resolution differs from the reference's {}×{}", reference.width, reference.height);
     }
     let opts = RenderOptions { spp: None, time: Some(a.time), seed: a.seed, threads: a.setup.threads };
-    let series = compare::run(&scene, &a.integrators, &reference, &opts, a.every.unwrap_or(Duration::ZERO), a.quiet)?;
+    let mut current = String::new();
+    let series =
+        compare::run(&scene, &a.integrators, &reference, &opts, a.every.unwrap_or(Duration::ZERO), |name, p| {
+            if a.quiet {
+                return;
+            }
+            if current != name {
+                if !current.is_empty() {
+                    eprintln!();
+                }
+                current = name.to_string();
+            }
+            eprint!("\r{name}: {:.1}/{:.0} s, {} spp   ", p.elapsed.as_secs_f64(), a.time.as_secs_f64(), p.spp_done);
+        })?;
+    if !a.quiet {
+        eprintln!();
+    }
     let study = compare::Study {
         scene_label: a.scene.as_deref().map(|p| p.display().to_string()).unwrap_or_else(|| "default scene".into()),
         reference_label: a.reference.display().to_string(),
@@ -536,7 +552,25 @@ fn refuse_non_finite(path: &Path, img: &Image, verb: &str) -> Result<()> {
 }
 
 /// Merges independent renders of one scene, weighted by their sample counts.
+/// Shards of one render (`render --shard`) are merged exactly, by adding their films, and
+/// only when each shard is given once.
 fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
+    let shards: Vec<bool> = parts.iter().map(|p| skelight::shard::is_shard_file(p)).collect();
+    if shards.iter().any(|s| *s) {
+        if let Some(i) = shards.iter().position(|s| !s) {
+            bail!("{} is not a shard but other inputs are; merge the shards of one render alone", parts[i].display());
+        }
+        let merged = skelight::shard::merge_files(parts)?;
+        write_outputs(&merged.film, merged.spp, output, 0.0)?;
+        eprintln!(
+            "merged {} shards ({} spp in all) of {} → {}",
+            merged.shards,
+            merged.spp,
+            merged.render,
+            output.display()
+        );
+        return Ok(());
+    }
     let mut loaded = Vec::new();
     for p in parts {
         let (img, attrs) = Image::load_exr_with_attributes(p)?;

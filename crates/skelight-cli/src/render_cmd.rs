@@ -8,11 +8,13 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use skelight::imageio::Image;
+use skelight::integrator;
 use skelight::integrator::bpt::{Bpt, Recorded};
 use skelight::integrator::mis::Heuristic;
 use skelight::integrator::skelbpt::SkeletonBpt;
-use skelight::integrator::{self, RenderOptions};
+use skelight::job::{JobError, JobSpec, Rendered};
 use skelight::scene::Scene;
+use skelight::shard::Shard;
 
 use crate::{
     load_scene, parse_define, parse_duration, parse_heuristic, parse_param, skeleton_pictures, write_text, SceneSetup,
@@ -72,62 +74,66 @@ pub(crate) struct RenderArgs {
     /// built tables for over the skeleton (nodes_view.png).
     #[arg(long, value_name = "DIR")]
     debug_distributions: Option<PathBuf>,
+    /// Render only shard K of N (from 0) of the --spp samples: a deterministic slice of the
+    /// sample indices, written with its film and a manifest in the EXR header, so that
+    /// `skelight merge` of all N shards gives the single render (up to f64 summation order).
+    #[arg(long, value_name = "K/N", value_parser = parse_shard)]
+    shard: Option<Shard>,
 }
 
-/// A render ready to run: the scene, its estimator and when to stop.
+fn parse_shard(s: &str) -> Result<Shard, String> {
+    Shard::parse(s).map_err(|e| e.to_string())
+}
+
+/// A render ready to run: the scene and the library's job (its estimator, when to stop,
+/// which shard).
 pub(crate) struct Job {
     pub(crate) scene: Scene,
-    pub(crate) integrator: Box<dyn integrator::Integrator>,
-    pub(crate) opts: RenderOptions,
-    pub(crate) label: String,
+    job: skelight::job::Job,
+}
+
+impl std::ops::Deref for Job {
+    type Target = skelight::job::Job;
+    fn deref(&self) -> &Self::Target {
+        &self.job
+    }
+}
+
+impl std::ops::DerefMut for Job {
+    fn deref_mut(&mut self) -> &mut Self::Target {
+        &mut self.job
+    }
 }
 
 impl Job {
-    #[allow(clippy::too_many_arguments)]
+    /// Loads the scene (the embedded default without a path), applies `setup`, and builds
+    /// the job; without `--spp` or `--time`, the scene's sample count (16 for the default
+    /// scene).
     pub(crate) fn new(
         scene_path: Option<&Path>,
         define: &[(String, String)],
         setup: &SceneSetup,
-        name: &str,
-        params: &[(String, String)],
-        spp: Option<u32>,
-        time: Option<Duration>,
-        seed: u64,
+        mut spec: JobSpec,
     ) -> Result<Job> {
         let mut scene = load_scene(scene_path, define)?;
         setup.apply(&mut scene)?;
-        let (integrator, warnings) = integrator::registry::create_for_scene(name, &scene.settings, params)?;
-        for w in warnings {
-            eprintln!("warning: {w}");
+        spec.threads = setup.threads;
+        if spec.spp.is_none() && spec.time.is_none() {
+            spec.spp = Some(if scene_path.is_some() { scene.settings.spp } else { 16 });
         }
-        let spp = match (spp, time) {
-            (Some(0), _) => bail!("--spp must be at least 1"),
-            (Some(s), _) => Some(s),
-            (None, Some(_)) => None,
-            (None, None) => Some(if scene_path.is_some() { scene.settings.spp } else { 16 }),
-        };
         let label = scene_path
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| "default scene (two rooms, door ajar)".into());
-        if let Some(why) = integrator.limitation(&scene) {
-            eprintln!("warning: {why}; the image will miss that light");
+        let job = skelight::job::Job::new(&scene, label, &spec)?;
+        for w in &job.warnings {
+            eprintln!("warning: {w}");
         }
-        let opts = RenderOptions { spp, time, seed, threads: setup.threads };
-        Ok(Job { scene, integrator, opts, label })
+        Ok(Job { scene, job })
     }
 
     /// Identifies what is rendered, so a checkpoint is resumed only by the same render.
     pub(crate) fn key(&self) -> String {
-        let s = &self.scene.settings;
-        format!(
-            "{}|{}|seed {}|{}x{}|depth {}",
-            self.label,
-            self.integrator.describe(),
-            self.opts.seed,
-            s.width,
-            s.height,
-            s.max_depth
-        )
+        self.job.key(&self.scene)
     }
 
     /// Renders with a progress bar; `on_pass` sees every pass (for checkpoints).
@@ -136,33 +142,33 @@ impl Job {
         resume: Option<(skelight::film::Film, u32)>,
         quiet: bool,
         mut on_pass: impl FnMut(&integrator::Progress, &skelight::film::Film) -> Result<()>,
-    ) -> Result<integrator::RenderResult> {
+    ) -> Result<Rendered> {
         let s = &self.scene.settings;
+        let shard = self.job.shard.map(|k| format!(", shard {k}")).unwrap_or_default();
         eprintln!(
-            "{}: {} triangles, {} lights, {}×{}, {}, max depth {}",
-            self.label,
+            "{}: {} triangles, {} lights, {}×{}, {}, max depth {}{shard}",
+            self.job.label,
             self.scene.triangle_count(),
             self.scene.lights.len(),
             s.width,
             s.height,
-            self.integrator.describe(),
+            self.job.integrator.describe(),
             s.max_depth
         );
-        let spp = self.opts.spp;
-        let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(spp.map(u64::from).unwrap_or(1000)) };
+        let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(1000) };
         bar.set_style(
             ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {msg}")
                 .expect("valid template")
                 .progress_chars("=> "),
         );
         let mut failure = None;
-        let result = integrator::render(&self.scene, self.integrator.as_mut(), &self.opts, resume, |p, film| {
+        let result = self.job.run(&self.scene, resume, |p, film| {
             let fraction = match (p.spp_target, p.time_budget) {
                 (Some(t), None) => p.spp_done as f64 / t as f64,
                 (_, Some(b)) => p.elapsed.as_secs_f64() / b.as_secs_f64(),
                 _ => 0.0,
             };
-            bar.set_position((fraction.min(1.0) * bar.length().unwrap_or(1) as f64) as u64);
+            bar.set_position((fraction.min(1.0) * 1000.0) as u64);
             let eta = if fraction > 0.0 { p.elapsed.as_secs_f64() * (1.0 / fraction.min(1.0) - 1.0) } else { 0.0 };
             bar.set_message(format!(
                 "{} spp, {:.2} Msamples/s, ETA {:.0} s",
@@ -170,21 +176,20 @@ impl Job {
                 p.samples_per_second / 1e6,
                 eta
             ));
-            match on_pass(p, film) {
-                Ok(()) => true,
-                Err(e) => {
-                    failure = Some(e);
-                    false
-                }
-            }
-        })?;
+            on_pass(p, film).map_err(|e| {
+                let stop = JobError::Stopped(format!("{e:#}"));
+                failure = Some(e);
+                stop
+            })
+        });
         bar.finish_and_clear();
-        if !quiet {
-            print_preparation(&result.preparation);
-            print_report(self.integrator.as_ref());
-        }
         if let Some(e) = failure {
             return Err(e);
+        }
+        let result = result?;
+        if !quiet {
+            print_preparation(&result.preparation);
+            print_report(self.job.integrator.as_ref());
         }
         Ok(result)
     }
@@ -192,11 +197,7 @@ impl Job {
 
 /// Writes OUT.exr (with its sample count) and OUT.png; returns the image.
 pub(crate) fn write_outputs(film: &skelight::film::Film, spp: u32, output: &Path, exposure: f32) -> Result<Image> {
-    let img = film.image();
-    img.save_exr_with(output, &[("skelight.spp", spp as f64)])
-        .with_context(|| format!("writing {}", output.display()))?;
-    img.save_png(&output.with_extension("png"), exposure)?;
-    Ok(img)
+    skelight::job::save_film(film, spp, output, exposure).with_context(|| format!("writing {}", output.display()))
 }
 
 /// What the estimator's preparation did and how long it took (nothing for estimators
@@ -221,14 +222,14 @@ pub(crate) fn print_report(integrator: &dyn integrator::Integrator) {
     }
 }
 
-pub(crate) fn summary(r: &integrator::RenderResult, pixels: usize, img: &Image, output: &Path) {
+pub(crate) fn summary(r: &Rendered, pixels: usize, img: &Image, output: &Path) {
     let secs = r.elapsed.as_secs_f64();
     let m = img.mean();
     eprintln!(
         "done: {} spp in {:.2} s ({:.2} Msamples/s), mean RGB {:.4} {:.4} {:.4}, {} non-finite samples rejected → {} and {}",
-        r.spp,
+        r.spp(),
         secs,
-        r.spp as f64 * pixels as f64 / secs.max(1e-9) / 1e6,
+        r.spp() as f64 * pixels as f64 / secs.max(1e-9) / 1e6,
         m.r,
         m.g,
         m.b,
@@ -243,16 +244,21 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
     if let Some(h) = args.heuristic {
         params.push(("heuristic".into(), format!("{h:?}").to_lowercase()));
     }
-    let mut job = Job::new(
-        args.scene.as_deref(),
-        &args.define,
-        &args.setup,
-        &args.integrator,
-        &params,
-        args.spp,
-        args.time,
-        args.seed,
-    )?;
+    if args.shard.is_some()
+        && (args.debug_skeleton.is_some() || args.debug_strategies.is_some() || args.debug_distributions.is_some())
+    {
+        bail!("--shard renders a slice of the samples; render the --debug-… pictures without it");
+    }
+    let spec = JobSpec {
+        integrator: args.integrator.clone(),
+        params: params.clone(),
+        spp: args.spp,
+        time: args.time,
+        seed: args.seed,
+        shard: args.shard,
+        ..JobSpec::default()
+    };
+    let mut job = Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
     if job.integrator.name() != "bpt" && (args.heuristic.is_some() || args.debug_strategies.is_some()) {
         bail!("--heuristic and --debug-strategies apply to --integrator bpt");
     }
@@ -298,7 +304,7 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
         job.integrator = integrator;
     }
     let r = job.run(None, args.quiet, |_, _| Ok(()))?;
-    let img = write_outputs(&r.film, r.spp, &args.output, args.exposure)?;
+    let img = r.save(&args.output, args.exposure).with_context(|| format!("writing {}", args.output.display()))?;
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
     if let Some(dir) = &args.debug_distributions {
         let skelbpt = job.integrator.as_any().and_then(|a| a.downcast_ref::<SkeletonBpt>());
@@ -336,7 +342,7 @@ fn render_parts(
     for part in parts {
         job.integrator = part.integrator;
         let r = job.run(None, args.quiet, |_, _| Ok(()))?;
-        let m = write_outputs(&r.film, r.spp, &dir.join(format!("{}.exr", part.stem)), args.exposure)?.mean();
+        let m = write_outputs(&r.film, r.spp(), &dir.join(format!("{}.exr", part.stem)), args.exposure)?.mean();
         csv += &format!("{},{},{},{}\n", part.columns, m.r, m.g, m.b);
     }
     write_text(&dir.join(csv_name), &csv)

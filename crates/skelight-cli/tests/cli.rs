@@ -316,6 +316,63 @@ fn merged_renders_match_one_longer_render() {
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("sizes differ"));
 }
 
+/// `render --shard K/N` renders a slice of the samples; `merge` of all N gives the single
+/// render (f64 sums added in another order: equal within one f32 rounding) and refuses a
+/// missing shard, a shard given twice, a shard of another render and a plain image.
+#[test]
+fn shards_merge_into_the_single_render() {
+    let d = tmp("shards");
+    let render = |out: &Path, extra: &[&str]| {
+        let mut args =
+            vec!["render", "-o", out.to_str().unwrap(), "-i", "bpt", "--resolution", "32", "24", "--spp", "9"];
+        args.extend_from_slice(extra);
+        args.push("-q");
+        run_ok(&args)
+    };
+    let single = d.join("single.exr");
+    render(&single, &[]);
+    let shards: Vec<PathBuf> = (0..3).map(|k| d.join(format!("s{k}.exr"))).collect();
+    for (k, s) in shards.iter().enumerate() {
+        let log = render(s, &["--shard", &format!("{k}/3")]);
+        assert!(log.contains("done: 3 spp"), "{log}");
+    }
+    let merged = d.join("merged.exr");
+    let p = |p: &PathBuf| p.to_str().unwrap().to_string();
+    let log = run_ok(&["merge", &p(&shards[2]), &p(&shards[0]), &p(&shards[1]), "-o", &p(&merged)]);
+    assert!(log.contains("merged 3 shards (9 spp in all)"), "{log}");
+    let (m, attrs) = Image::load_exr_with_attributes(&merged).unwrap();
+    assert!(attrs.iter().any(|(k, v)| k == "skelight.spp" && *v == 9.0));
+    let s = Image::load(&single).unwrap();
+    for (a, b) in m.pixels.iter().zip(&s.pixels) {
+        for (x, y) in a.to_array().into_iter().zip(b.to_array()) {
+            assert!((x - y).abs() <= 2e-7 * y.abs(), "merged {x} vs single {y}");
+        }
+    }
+    let other = d.join("other.exr");
+    render(&other, &["--shard", "1/3", "--seed", "7"]);
+    for (inputs, message) in [
+        (vec![p(&shards[0]), p(&shards[2])], "shards [1] of 3 are missing"),
+        (vec![p(&shards[0]), p(&shards[1]), p(&shards[1]), p(&shards[2])], "are both shard 1/3"),
+        (vec![p(&shards[0]), p(&other), p(&shards[2])], "is not a shard of"),
+        (vec![p(&shards[0]), p(&single)], "is not a shard but other inputs are"),
+    ] {
+        let out = bin().arg("merge").args(&inputs).args(["-o", &p(&d.join("x.exr"))]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(message), "{inputs:?}: {err}");
+    }
+    for bad in [
+        vec!["--spp", "9", "--shard", "3/3"],
+        vec!["--spp", "9", "--shard", "0/10"],
+        vec!["--shard", "0/2", "--time", "1"],
+    ] {
+        let mut args = vec!["render", "-o", "/nonexistent/x.exr", "--resolution", "8", "8"];
+        args.extend(bad.iter().copied());
+        let out = bin().args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("shard") && !err.contains("panicked"), "{bad:?}: {err}");
+    }
+}
+
 /// A tiny equal-time study writes every part of the report, with consistent numbers.
 #[test]
 fn compare_writes_a_complete_report() {

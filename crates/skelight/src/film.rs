@@ -399,6 +399,28 @@ impl Film {
         img
     }
 
+    /// Adds `other`'s samples and splats to this film (a shard to the merge of the others):
+    /// the sums add, so the merge of a render's shards is that render, up to the order in
+    /// which the f64 sums were added.
+    pub fn add(&mut self, other: &Film) -> Result<(), String> {
+        if (self.width, self.height) != (other.width, other.height) {
+            return Err(format!("sizes differ: {}×{} vs {}×{}", other.width, other.height, self.width, self.height));
+        }
+        if self.filter != other.filter {
+            return Err(format!("filters differ: {:?} vs {:?}", other.filter, self.filter));
+        }
+        let add3 = |a: &mut [[f64; 3]], b: &[[f64; 3]]| {
+            a.iter_mut().zip(b).for_each(|(a, b)| (0..3).for_each(|c| a[c] += b[c]));
+        };
+        add3(&mut self.sum, &other.sum);
+        add3(&mut self.sum_sq, &other.sum_sq);
+        add3(&mut self.splat, &other.splat);
+        self.weight.iter_mut().zip(&other.weight).for_each(|(a, b)| *a += b);
+        self.splat_paths += other.splat_paths;
+        self.rejected += other.rejected;
+        Ok(())
+    }
+
     /// Exact binary form (all accumulators as f64), for checkpoints.
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out = Vec::with_capacity(64 + self.weight.len() * 80);

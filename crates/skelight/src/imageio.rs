@@ -103,6 +103,42 @@ impl Image {
         write_atomically(path, |tmp| image.write().to_file(tmp).map_err(|e| e.to_string())).map_err(err)
     }
 
+    /// Writes an EXR whose header also carries text and binary attributes (a shard's
+    /// manifest and its film), atomically.
+    pub fn save_exr_annotated(&self, path: &Path, notes: &Annotations) -> Result<(), ImageError> {
+        use exr::prelude::*;
+        let err = |reason: String| ImageError::Write { path: path.to_path_buf(), reason };
+        let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+            let c = self.pixels[p.1 * self.width + p.0];
+            (c.r, c.g, c.b)
+        });
+        let mut attrs = LayerAttributes::named("rgb");
+        for (k, v) in &notes.numbers {
+            attrs.other.insert(Text::from(k.as_str()), AttributeValue::F64(*v));
+        }
+        for (k, v) in &notes.texts {
+            let text = Text::new_or_none(v.as_str()).ok_or_else(|| err(format!("attribute {k} is not plain text")))?;
+            attrs.other.insert(Text::from(k.as_str()), AttributeValue::Text(text));
+        }
+        for (k, v) in &notes.blobs {
+            let bytes = exr::prelude::SmallVec::from_vec(v.clone());
+            attrs.other.insert(Text::from(k.as_str()), AttributeValue::Custom { kind: Text::from(BLOB_KIND), bytes });
+        }
+        let layer = Layer::new((self.width, self.height), attrs, Encoding::SMALL_LOSSLESS, channels);
+        let image = exr::image::Image::from_layer(layer);
+        write_atomically(path, |tmp| image.write().to_file(tmp).map_err(|e| e.to_string())).map_err(err)
+    }
+
+    /// Loads an EXR with all its header attributes: numbers, texts and binary blobs.
+    pub fn load_exr_annotated(path: &Path) -> Result<(Image, Annotations), ImageError> {
+        let err = |reason: String| ImageError::Read { path: path.to_path_buf(), reason };
+        if !path.exists() {
+            return Err(err("file not found".into()));
+        }
+        check_exr_header(path).map_err(err)?;
+        catch_panic("EXR data", || decode_exr(path)).and_then(|r| r).map_err(err)
+    }
+
     /// Loads an EXR with its numeric header attributes.
     pub fn load_exr_with_attributes(path: &Path) -> Result<(Image, Vec<(String, f64)>), ImageError> {
         let err = |reason: String| ImageError::Read { path: path.to_path_buf(), reason };
@@ -210,12 +246,36 @@ fn check_exr_header(path: &Path) -> Result<(), String> {
     Ok(())
 }
 
-fn load_exr(path: &Path) -> Result<(Image, Vec<(String, f64)>), String> {
-    check_exr_header(path)?;
-    catch_panic("EXR data", || decode_exr(path))?
+/// Header attributes beside the pixels: numbers (`skelight.spp`), texts (a shard's
+/// manifest) and binary blobs (a shard's film).
+#[derive(Clone, Debug, Default)]
+pub struct Annotations {
+    pub numbers: Vec<(String, f64)>,
+    pub texts: Vec<(String, String)>,
+    pub blobs: Vec<(String, Vec<u8>)>,
 }
 
-fn decode_exr(path: &Path) -> Result<(Image, Vec<(String, f64)>), String> {
+impl Annotations {
+    pub fn number(&self, key: &str) -> Option<f64> {
+        self.numbers.iter().find(|(k, _)| k == key).map(|(_, v)| *v)
+    }
+    pub fn text(&self, key: &str) -> Option<&str> {
+        self.texts.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+    pub fn blob(&self, key: &str) -> Option<&[u8]> {
+        self.blobs.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_slice())
+    }
+}
+
+/// The EXR attribute type name of skelight's binary attributes.
+const BLOB_KIND: &str = "skelightBytes";
+
+fn load_exr(path: &Path) -> Result<(Image, Vec<(String, f64)>), String> {
+    check_exr_header(path)?;
+    catch_panic("EXR data", || decode_exr(path))?.map(|(img, notes)| (img, notes.numbers))
+}
+
+fn decode_exr(path: &Path) -> Result<(Image, Annotations), String> {
     use exr::prelude::*;
     let img = read_first_rgba_layer_from_file(
         path,
@@ -226,18 +286,20 @@ fn decode_exr(path: &Path) -> Result<(Image, Vec<(String, f64)>), String> {
         },
     )
     .map_err(|e| e.to_string())?;
-    let attributes = img
-        .layer_data
-        .attributes
-        .other
-        .iter()
-        .filter_map(|(k, v)| match v {
-            AttributeValue::F64(x) => Some((k.to_string(), *x)),
-            AttributeValue::F32(x) => Some((k.to_string(), *x as f64)),
-            AttributeValue::I32(x) => Some((k.to_string(), *x as f64)),
-            _ => None,
-        })
-        .collect();
+    let mut attributes = Annotations::default();
+    for (k, v) in img.layer_data.attributes.other.iter() {
+        let key = k.to_string();
+        match v {
+            AttributeValue::F64(x) => attributes.numbers.push((key, *x)),
+            AttributeValue::F32(x) => attributes.numbers.push((key, *x as f64)),
+            AttributeValue::I32(x) => attributes.numbers.push((key, *x as f64)),
+            AttributeValue::Text(t) => attributes.texts.push((key, t.to_string())),
+            AttributeValue::Custom { kind, bytes } if kind == BLOB_KIND => {
+                attributes.blobs.push((key, bytes.to_vec()))
+            }
+            _ => {}
+        }
+    }
     let image: crate::imageio::Image = img.layer_data.channel_data.pixels;
     if image.width == 0 || image.height == 0 {
         return Err("image has no pixels".into());

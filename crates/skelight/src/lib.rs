@@ -2,7 +2,9 @@
 //! sample light paths where ordinary estimators struggle.
 //!
 //! Data flow: scene files → [`scene`] (+ [`geometry`] BVH) → estimators in [`integrator`]
-//! → [`film`] → [`eval`].
+//! → [`film`] → [`eval`]. [`job`] is a render as the CLI, the Python package and Dask's
+//! workers run it; [`shard`] splits a render's samples and merges them back; [`compare`]
+//! runs equal-time studies.
 
 // `!(x > 0.0)` is used on purpose throughout: unlike `x <= 0.0` it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -11,15 +13,18 @@ mod boundary;
 pub mod camera;
 pub mod checkpoint;
 pub mod color;
+pub mod compare;
 pub mod eval;
 pub mod film;
 pub mod geometry;
 pub mod guided;
 pub mod imageio;
 pub mod integrator;
+pub mod job;
 pub mod light;
 pub mod material;
 pub mod math;
 pub mod sampling;
 pub mod scene;
+pub mod shard;
 pub mod texture;

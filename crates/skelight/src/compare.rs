@@ -1,0 +1,101 @@
+//! Equal-time runs of several estimators against a reference: the error after every pass,
+//! and the time each takes to reach a target error. `skelight compare` writes its report
+//! from these curves; the Python package returns them as arrays.
+
+use std::time::Duration;
+
+use crate::eval::{self, Metrics};
+use crate::imageio::Image;
+use crate::integrator::{self, Progress, RenderOptions};
+use crate::job::JobError;
+use crate::scene::Scene;
+
+/// One error measurement during a run.
+#[derive(Clone, Debug)]
+pub struct Point {
+    pub iteration: usize,
+    pub spp: u32,
+    pub seconds: f64,
+    pub metrics: Metrics,
+}
+
+/// One estimator's run: its error curve and final image.
+pub struct Series {
+    pub name: String,
+    pub points: Vec<Point>,
+    pub image: Image,
+    /// Seconds of the estimator's preparation (part of its time budget).
+    pub preparation: f64,
+}
+
+/// Runs each estimator (`name` or `name:param=value:…`) in turn for `base.time`, measuring
+/// the error against `reference` after every pass (at most once per `every`); `on_pass`
+/// sees each estimator's progress.
+pub fn run(
+    scene: &Scene,
+    names: &[String],
+    reference: &Image,
+    base: &RenderOptions,
+    every: Duration,
+    mut on_pass: impl FnMut(&str, &Progress),
+) -> Result<Vec<Series>, JobError> {
+    let time = base.time.ok_or_else(|| JobError::Invalid("a comparison needs a time budget".into()))?;
+    eval::metrics(reference, reference).map_err(|_| JobError::Invalid("the reference has no pixels".into()))?;
+    if (scene.settings.width, scene.settings.height) != (reference.width, reference.height) {
+        return Err(JobError::Invalid(format!(
+            "the scene renders {}×{} but the reference is {}×{}",
+            scene.settings.width, scene.settings.height, reference.width, reference.height
+        )));
+    }
+    let mut out: Vec<Series> = Vec::new();
+    for name in names {
+        let (estimator, params) = integrator::registry::parse_spec(name)?;
+        let mut integ = integrator::registry::create(&estimator, &params)?;
+        // The same estimator twice (e.g. to see run-to-run spread) gets distinct names.
+        let repeats = out.iter().filter(|s| s.name == *name || s.name.starts_with(&format!("{name}#"))).count();
+        let label = if repeats == 0 { name.clone() } else { format!("{name}#{}", repeats + 1) };
+        let opts = RenderOptions { spp: None, time: Some(time), ..base.clone() };
+        let mut points = Vec::new();
+        let mut last: Option<f64> = None;
+        let r = integrator::render(scene, integ.as_mut(), &opts, None, |p, film| {
+            let t = p.elapsed.as_secs_f64();
+            if last.is_none_or(|l| t - l >= every.as_secs_f64()) {
+                let metrics = eval::metrics(&film.image(), reference).expect("sizes checked above");
+                points.push(Point { iteration: points.len(), spp: p.spp_done, seconds: t, metrics });
+                last = Some(t);
+            }
+            on_pass(name, p);
+            true
+        })?;
+        let image = r.film.image();
+        let metrics = eval::metrics(&image, reference).expect("sizes checked above");
+        if points.last().is_none_or(|p| p.spp != r.spp) {
+            points.push(Point { iteration: points.len(), spp: r.spp, seconds: r.elapsed.as_secs_f64(), metrics });
+        }
+        out.push(Series { name: label, points, image, preparation: r.preparation.elapsed.as_secs_f64() });
+    }
+    Ok(out)
+}
+
+/// The error a study ranks by (relMSE).
+pub fn metric(p: &Point) -> f64 {
+    p.metrics.relmse
+}
+
+/// Time at which a series first reaches `target` error (log-log interpolation).
+pub fn time_to_error(points: &[Point], target: f64) -> Option<f64> {
+    let mut prev: Option<&Point> = None;
+    for p in points {
+        if metric(p) <= target {
+            return Some(match prev {
+                Some(q) if metric(q) > target && metric(p) > 0.0 && q.seconds > 0.0 => {
+                    let f = (target.ln() - metric(q).ln()) / (metric(p).ln() - metric(q).ln());
+                    (q.seconds.ln() + f * (p.seconds.ln() - q.seconds.ln())).exp()
+                }
+                _ => p.seconds,
+            });
+        }
+        prev = Some(p);
+    }
+    None
+}

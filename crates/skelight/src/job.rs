@@ -1,0 +1,214 @@
+//! A render job, as `skelight render` and `reference`, the Python package and Dask's workers
+//! all run it: a loaded scene, an estimator built from the registry with its parameters,
+//! when to stop, and optionally one shard of the render's samples ([`crate::shard`]).
+
+use std::ops::Range;
+use std::path::Path;
+use std::time::Duration;
+
+use crate::film::Film;
+use crate::imageio::{Image, ImageError};
+use crate::integrator::params::ParamError;
+use crate::integrator::{self, Integrator, Preparation, Progress, RenderError, RenderOptions};
+use crate::scene::load::LoadError;
+use crate::scene::Scene;
+use crate::shard::{Manifest, Shard, ShardError, ShardOutput};
+
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    #[error(transparent)]
+    Load(#[from] LoadError),
+    #[error(transparent)]
+    Params(#[from] ParamError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error(transparent)]
+    Shard(#[from] ShardError),
+    #[error(transparent)]
+    Image(#[from] ImageError),
+    #[error("{0}")]
+    Invalid(String),
+    /// The caller stopped the render (Ctrl-C, a failed checkpoint write).
+    #[error("{0}")]
+    Stopped(String),
+}
+
+/// What to render with, and for how long.
+#[derive(Clone, Debug, Default)]
+pub struct JobSpec {
+    /// A registry estimator's name.
+    pub integrator: String,
+    /// Its parameters as NAME=VALUE pairs (over the scene's `<integrator>` properties).
+    pub params: Vec<(String, String)>,
+    /// Samples per pixel (of the whole render when sharded).
+    pub spp: Option<u32>,
+    /// Wall-clock budget instead of (or as a cap with) `spp`; not with a shard.
+    pub time: Option<Duration>,
+    pub seed: u64,
+    /// Worker threads; 0 = all cores.
+    pub threads: usize,
+    /// Render only this slice of the samples.
+    pub shard: Option<Shard>,
+}
+
+/// A render ready to run on a scene.
+pub struct Job {
+    pub integrator: Box<dyn Integrator>,
+    pub opts: RenderOptions,
+    /// Names the scene in reports and manifests (its path, or the default scene).
+    pub label: String,
+    pub shard: Option<Shard>,
+    /// What the registry and the estimator had to say (ignored scene properties, light the
+    /// estimator cannot render).
+    pub warnings: Vec<String>,
+}
+
+/// A finished job: its film holds exactly `samples`.
+pub struct Rendered {
+    pub film: Film,
+    /// The sample indices rendered (0..spp without a shard).
+    pub samples: Range<u32>,
+    /// Wall time, preparation included.
+    pub elapsed: Duration,
+    pub preparation: Preparation,
+    /// Set for a shard.
+    pub manifest: Option<Manifest>,
+}
+
+impl Rendered {
+    pub fn spp(&self) -> u32 {
+        self.samples.len() as u32
+    }
+
+    /// Writes OUT.exr (with its sample count; a shard also with its manifest and film) and
+    /// OUT.png, each atomically; returns the image.
+    pub fn save(&self, output: &Path, exposure: f32) -> Result<Image, JobError> {
+        if let Some(output_shard) = self.shard_output() {
+            return Ok(output_shard.save(output, exposure)?);
+        }
+        save_film(&self.film, self.spp(), output, exposure)
+    }
+
+    /// The shard's output (film and manifest), if this job rendered a shard.
+    pub fn shard_output(&self) -> Option<ShardOutput> {
+        self.manifest.clone().map(|manifest| ShardOutput { film: self.film.clone(), manifest })
+    }
+}
+
+/// Writes a film's image to OUT.exr, with its sample count in the header (for `merge`), and
+/// OUT.png, each atomically; returns the image.
+pub fn save_film(film: &Film, spp: u32, output: &Path, exposure: f32) -> Result<Image, JobError> {
+    let img = film.image();
+    img.save_exr_with(output, &[("skelight.spp", spp as f64)])?;
+    img.save_png(&output.with_extension("png"), exposure)?;
+    Ok(img)
+}
+
+impl Job {
+    pub fn new(scene: &Scene, label: impl Into<String>, spec: &JobSpec) -> Result<Job, JobError> {
+        let (integrator, mut warnings) =
+            integrator::registry::create_for_scene(&spec.integrator, &scene.settings, &spec.params)?;
+        match (spec.spp, spec.time) {
+            (Some(0), _) => return Err(JobError::Invalid("the sample count must be at least 1".into())),
+            (None, None) => return Err(JobError::Invalid("give a sample count or a time budget".into())),
+            _ => {}
+        }
+        if let Some(t) = spec.time.filter(|t| t.is_zero()) {
+            return Err(JobError::Invalid(format!("a time budget of {t:?} renders nothing")));
+        }
+        if let Some(shard) = spec.shard {
+            let spp = spec.spp.filter(|_| spec.time.is_none()).ok_or_else(|| {
+                JobError::Invalid("a shard needs a sample count and no time budget: shards split the samples".into())
+            })?;
+            shard.samples(spp)?;
+        }
+        if let Some(why) = integrator.limitation(scene) {
+            warnings.push(format!("{why}; the image will miss that light"));
+        }
+        let opts = RenderOptions { spp: spec.spp, time: spec.time, seed: spec.seed, threads: spec.threads };
+        Ok(Job { integrator, opts, label: label.into(), shard: spec.shard, warnings })
+    }
+
+    /// Identifies what is rendered, so that a checkpoint is resumed and shards merged only
+    /// with the same render.
+    pub fn key(&self, scene: &Scene) -> String {
+        let s = &scene.settings;
+        let mut key = format!(
+            "{}|{}|seed {}|{}x{}|depth {}",
+            self.label,
+            self.integrator.describe(),
+            self.opts.seed,
+            s.width,
+            s.height,
+            s.max_depth
+        );
+        if self.shard.is_some() {
+            key += &format!("|{} spp", self.opts.spp.unwrap_or(0));
+        }
+        key
+    }
+
+    /// The sample indices this job renders when it has a shard.
+    fn shard_samples(&self) -> Option<Range<u32>> {
+        let spp = self.opts.spp?;
+        self.shard.and_then(|s| s.samples(spp).ok())
+    }
+
+    /// Renders, from `resume` (a film and its sample count) if given. `on_pass` sees every
+    /// pass (progress counted within this job's samples); its error stops the render and is
+    /// returned.
+    pub fn run(
+        &mut self,
+        scene: &Scene,
+        resume: Option<(Film, u32)>,
+        mut on_pass: impl FnMut(&Progress, &Film) -> Result<(), JobError>,
+    ) -> Result<Rendered, JobError> {
+        let shard_samples = self.shard_samples();
+        if shard_samples.is_some() && resume.is_some() {
+            return Err(JobError::Invalid("a shard cannot resume another render".into()));
+        }
+        let mut opts = self.opts.clone();
+        // A shard is a render resumed at its first sample from an empty film, stopping after
+        // its last: the render loop's passes stay aligned to the single render's.
+        let resume = match &shard_samples {
+            Some(r) => {
+                opts.spp = Some(r.end);
+                Some((Film::new(scene.settings.width, scene.settings.height, scene.settings.filter), r.start))
+            }
+            None => resume,
+        };
+        let first = resume.as_ref().map_or(0, |r| r.1);
+        let origin = shard_samples.as_ref().map_or(0, |r| r.start);
+        let pixels = (scene.settings.width * scene.settings.height) as f64;
+        let mut failure = None;
+        let r = integrator::render(scene, self.integrator.as_mut(), &opts, resume, |p, film| {
+            let done = p.spp_done - first;
+            let own = Progress {
+                spp_done: p.spp_done - origin,
+                spp_target: p.spp_target.map(|t| t - origin),
+                samples_per_second: done as f64 * pixels / p.elapsed.as_secs_f64().max(1e-9),
+                ..*p
+            };
+            match on_pass(&own, film) {
+                Ok(()) => true,
+                Err(e) => {
+                    failure = Some(e);
+                    false
+                }
+            }
+        })?;
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        let manifest = match (self.shard, shard_samples) {
+            (Some(shard), Some(samples)) => {
+                if r.spp != samples.end {
+                    return Err(JobError::Stopped(format!("shard {shard} stopped at sample {} of {samples:?}", r.spp)));
+                }
+                Some(Manifest { render: self.key(scene), shard, samples })
+            }
+            _ => None,
+        };
+        Ok(Rendered { film: r.film, samples: origin..r.spp, elapsed: r.elapsed, preparation: r.preparation, manifest })
+    }
+}
