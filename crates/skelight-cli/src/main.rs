@@ -12,7 +12,6 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use skelight::checkpoint::Checkpoint;
 use skelight::eval;
 use skelight::imageio::Image;
 use skelight::integrator::mis::Heuristic;
@@ -447,42 +446,16 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         seed: args.seed,
         ..JobSpec::default()
     };
-    let job = Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
-    let ckpt_path = PathBuf::from(format!("{}.ckpt", args.output.display()));
-    let key = job.key();
-    let mut elapsed_before = Duration::ZERO;
-    let mut resume = None;
-    if ckpt_path.exists() {
-        let c = Checkpoint::load(&ckpt_path).map_err(anyhow::Error::msg)?;
-        if c.key != key {
-            bail!("{} belongs to another render ({}); remove it or choose another output", ckpt_path.display(), c.key);
-        }
-        eprintln!("resuming from {} ({} spp, {:.1} s done)", ckpt_path.display(), c.spp, c.elapsed.as_secs_f64());
-        elapsed_before = c.elapsed;
-        resume = Some((c.film, c.spp));
+    let mut job = Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
+    let reference = job.open_reference(&args.output, args.checkpoint_every)?;
+    let checkpoint = reference.checkpoint.clone();
+    if let Some((spp, elapsed)) = reference.resumed() {
+        eprintln!("resuming from {} ({spp} spp, {:.1} s done)", checkpoint.display(), elapsed.as_secs_f64());
     }
-    let mut job = job;
-    if let Some(t) = job.opts.time {
-        job.opts.time = Some(t.saturating_sub(elapsed_before).max(Duration::from_millis(1)));
-    }
-    let mut last = std::time::Instant::now();
-    let save = |film: &skelight::film::Film, spp: u32, elapsed: Duration| -> Result<()> {
-        Checkpoint { key: key.clone(), spp, elapsed: elapsed_before + elapsed, film: film.clone() }
-            .save(&ckpt_path)
-            .map_err(anyhow::Error::msg)?;
-        write_outputs(film, spp, &args.output, 0.0).map(|_| ())
-    };
-    let r = job.run(resume, args.quiet, |p, film| {
-        if last.elapsed() >= args.checkpoint_every {
-            save(film, p.spp_done, p.elapsed)?;
-            last = std::time::Instant::now();
-        }
-        Ok(())
-    })?;
-    save(&r.film, r.spp(), r.elapsed)?;
-    let img = write_outputs(&r.film, r.spp(), &args.output, 0.0)?;
+    let r = job.run_with(args.quiet, |job, scene, on_pass| reference.run(job, scene, on_pass))?;
+    let img = r.film.image();
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
-    eprintln!("checkpoint kept at {} (rerun with a larger --spp or --time to extend)", ckpt_path.display());
+    eprintln!("checkpoint kept at {} (rerun with a larger --spp or --time to extend)", checkpoint.display());
     Ok(())
 }
 
@@ -571,29 +544,10 @@ fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
         );
         return Ok(());
     }
-    let mut loaded = Vec::new();
-    for p in parts {
-        let (img, attrs) = Image::load_exr_with_attributes(p)?;
-        refuse_non_finite(p, &img, "merge")?;
-        let spp = attrs.iter().find(|(k, _)| k == "skelight.spp").map(|a| a.1);
-        if let Some(n) = spp.filter(|n| !(*n >= 1.0 && n.fract() == 0.0)) {
-            bail!("{}: its header's sample count skelight.spp = {n} is not a positive whole number", p.display());
-        }
-        let n = match (spp, equal_weights) {
-            (_, true) => 1.0,
-            (Some(n), false) => n,
-            (None, false) => bail!(
-                "{}: no sample count (skelight.spp) in its header; use --equal-weights for foreign images",
-                p.display()
-            ),
-        };
-        loaded.push((img, n));
-    }
-    let total: f64 = loaded.iter().map(|l| l.1).sum();
-    let img = eval::merge_weighted(&loaded).map_err(anyhow::Error::msg)?;
+    let (img, total) = skelight::shard::merge_independent(parts, equal_weights)?;
     img.save_exr_with(output, &[("skelight.spp", total)])?;
     img.save_png(&output.with_extension("png"), 0.0)?;
-    eprintln!("merged {} images ({} spp in all) → {}", loaded.len(), total, output.display());
+    eprintln!("merged {} images ({} spp in all) → {}", parts.len(), total, output.display());
     Ok(())
 }
 

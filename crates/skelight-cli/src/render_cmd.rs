@@ -12,7 +12,7 @@ use skelight::integrator;
 use skelight::integrator::bpt::{Bpt, Recorded};
 use skelight::integrator::mis::Heuristic;
 use skelight::integrator::skelbpt::SkeletonBpt;
-use skelight::job::{JobError, JobSpec, Rendered};
+use skelight::job::{JobError, JobSpec, Reference, Rendered};
 use skelight::scene::Scene;
 use skelight::shard::Shard;
 
@@ -85,6 +85,9 @@ fn parse_shard(s: &str) -> Result<Shard, String> {
     Shard::parse(s).map_err(|e| e.to_string())
 }
 
+/// What a render calls after every pass.
+pub(crate) type OnPass<'a> = dyn FnMut(&integrator::Progress, &skelight::film::Film) -> Result<(), JobError> + 'a;
+
 /// A render ready to run: the scene and the library's job (its estimator, when to stop,
 /// which shard).
 pub(crate) struct Job {
@@ -131,17 +134,22 @@ impl Job {
         Ok(Job { scene, job })
     }
 
-    /// Identifies what is rendered, so a checkpoint is resumed only by the same render.
-    pub(crate) fn key(&self) -> String {
-        self.job.key(&self.scene)
+    /// The long render to `output` with checkpoints beside it, resuming one found there.
+    pub(crate) fn open_reference(&mut self, output: &Path, every: std::time::Duration) -> Result<Reference> {
+        Ok(Reference::open(&mut self.job, &self.scene, output, every)?)
     }
 
-    /// Renders with a progress bar; `on_pass` sees every pass (for checkpoints).
-    pub(crate) fn run(
+    /// Renders with a progress bar.
+    pub(crate) fn run(&mut self, quiet: bool) -> Result<Rendered> {
+        self.run_with(quiet, |job, scene, on_pass| job.run(scene, None, on_pass))
+    }
+
+    /// Runs `render` (the library's job run, or a reference's) with a progress bar fed by the
+    /// progress callback it is handed.
+    pub(crate) fn run_with(
         &mut self,
-        resume: Option<(skelight::film::Film, u32)>,
         quiet: bool,
-        mut on_pass: impl FnMut(&integrator::Progress, &skelight::film::Film) -> Result<()>,
+        render: impl FnOnce(&mut skelight::job::Job, &Scene, &mut OnPass) -> Result<Rendered, JobError>,
     ) -> Result<Rendered> {
         let s = &self.scene.settings;
         let shard = self.job.shard.map(|k| format!(", shard {k}")).unwrap_or_default();
@@ -161,8 +169,7 @@ impl Job {
                 .expect("valid template")
                 .progress_chars("=> "),
         );
-        let mut failure = None;
-        let result = self.job.run(&self.scene, resume, |p, film| {
+        let mut on_pass = |p: &integrator::Progress, _: &skelight::film::Film| {
             let fraction = match (p.spp_target, p.time_budget) {
                 (Some(t), None) => p.spp_done as f64 / t as f64,
                 (_, Some(b)) => p.elapsed.as_secs_f64() / b.as_secs_f64(),
@@ -176,16 +183,10 @@ impl Job {
                 p.samples_per_second / 1e6,
                 eta
             ));
-            on_pass(p, film).map_err(|e| {
-                let stop = JobError::Stopped(format!("{e:#}"));
-                failure = Some(e);
-                stop
-            })
-        });
+            Ok(())
+        };
+        let result = render(&mut self.job, &self.scene, &mut on_pass);
         bar.finish_and_clear();
-        if let Some(e) = failure {
-            return Err(e);
-        }
         let result = result?;
         if !quiet {
             print_preparation(&result.preparation);
@@ -303,7 +304,7 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
         let (integrator, _) = integrator::registry::create_for_scene(name, &job.scene.settings, &params)?;
         job.integrator = integrator;
     }
-    let r = job.run(None, args.quiet, |_, _| Ok(()))?;
+    let r = job.run(args.quiet)?;
     let img = r.save(&args.output, args.exposure).with_context(|| format!("writing {}", args.output.display()))?;
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
     if let Some(dir) = &args.debug_distributions {
@@ -341,7 +342,7 @@ fn render_parts(
     let mut csv = format!("{columns},mean_r,mean_g,mean_b\n");
     for part in parts {
         job.integrator = part.integrator;
-        let r = job.run(None, args.quiet, |_, _| Ok(()))?;
+        let r = job.run(args.quiet)?;
         let m = write_outputs(&r.film, r.spp(), &dir.join(format!("{}.exr", part.stem)), args.exposure)?.mean();
         csv += &format!("{},{},{},{}\n", part.columns, m.r, m.g, m.b);
     }

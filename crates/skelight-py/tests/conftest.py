@@ -21,7 +21,7 @@ def c01() -> Path:
 @pytest.fixture(scope="session")
 def cli() -> Path:
     """The release CLI (built here if the cargo tests have not built it)."""
-    exe = ROOT / "target" / "release" / "skelight"
+    exe = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target")) / "release" / "skelight"
     if not exe.exists():
         subprocess.run(["cargo", "build", "--release", "-p", "skelight-cli"], cwd=ROOT, check=True)
     return exe

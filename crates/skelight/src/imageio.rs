@@ -294,9 +294,7 @@ fn decode_exr(path: &Path) -> Result<(Image, Annotations), String> {
             AttributeValue::F32(x) => attributes.numbers.push((key, *x as f64)),
             AttributeValue::I32(x) => attributes.numbers.push((key, *x as f64)),
             AttributeValue::Text(t) => attributes.texts.push((key, t.to_string())),
-            AttributeValue::Custom { kind, bytes } if kind == BLOB_KIND => {
-                attributes.blobs.push((key, bytes.to_vec()))
-            }
+            AttributeValue::Custom { kind, bytes } if kind == BLOB_KIND => attributes.blobs.push((key, bytes.to_vec())),
             _ => {}
         }
     }

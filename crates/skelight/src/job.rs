@@ -3,9 +3,10 @@
 //! when to stop, and optionally one shard of the render's samples ([`crate::shard`]).
 
 use std::ops::Range;
-use std::path::Path;
-use std::time::Duration;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
+use crate::checkpoint::Checkpoint;
 use crate::film::Film;
 use crate::imageio::{Image, ImageError};
 use crate::integrator::params::ParamError;
@@ -31,6 +32,8 @@ pub enum JobError {
     /// The caller stopped the render (Ctrl-C, a failed checkpoint write).
     #[error("{0}")]
     Stopped(String),
+    #[error("{path}: {reason}")]
+    Checkpoint { path: PathBuf, reason: String },
 }
 
 /// What to render with, and for how long.
@@ -210,5 +213,83 @@ impl Job {
             _ => None,
         };
         Ok(Rendered { film: r.film, samples: origin..r.spp, elapsed: r.elapsed, preparation: r.preparation, manifest })
+    }
+}
+
+/// A long render to OUT.exr that checkpoints to OUT.exr.ckpt and, started again with the same
+/// job, resumes from it: the result is bit-identical to an uninterrupted render (random
+/// numbers depend on seed, pixel and sample index only; passes are aligned to sample 0).
+pub struct Reference {
+    pub output: PathBuf,
+    pub checkpoint: PathBuf,
+    /// How often to write the checkpoint (and the image so far).
+    pub every: Duration,
+    /// The checkpoint found: its film, samples per pixel and the time already spent.
+    resume: Option<(Film, u32, Duration)>,
+}
+
+impl Reference {
+    /// Opens the reference of `job` at `output`, reading its checkpoint if there is one (and
+    /// refusing one that belongs to another render). A time budget counts the time already
+    /// spent.
+    pub fn open(job: &mut Job, scene: &Scene, output: &Path, every: Duration) -> Result<Reference, JobError> {
+        if job.shard.is_some() {
+            return Err(JobError::Invalid("a reference renders all the samples; render shards with --shard".into()));
+        }
+        let checkpoint = PathBuf::from(format!("{}.ckpt", output.display()));
+        let mut resume = None;
+        if checkpoint.exists() {
+            let c = Checkpoint::load(&checkpoint)
+                .map_err(|reason| JobError::Checkpoint { path: checkpoint.clone(), reason })?;
+            let key = job.key(scene);
+            if c.key != key {
+                return Err(JobError::Checkpoint {
+                    path: checkpoint,
+                    reason: format!("belongs to another render ({}); remove it or choose another output", c.key),
+                });
+            }
+            if let Some(t) = job.opts.time {
+                job.opts.time = Some(t.saturating_sub(c.elapsed).max(Duration::from_millis(1)));
+            }
+            resume = Some((c.film, c.spp, c.elapsed));
+        }
+        Ok(Reference { output: output.to_path_buf(), checkpoint, every, resume })
+    }
+
+    /// Samples per pixel and seconds the checkpoint holds, if one was found.
+    pub fn resumed(&self) -> Option<(u32, Duration)> {
+        self.resume.as_ref().map(|r| (r.1, r.2))
+    }
+
+    /// Renders, writing the checkpoint and the image every `every` and at the end (the
+    /// checkpoint is kept, so that a larger sample count or time extends the render).
+    pub fn run(
+        mut self,
+        job: &mut Job,
+        scene: &Scene,
+        mut on_pass: impl FnMut(&Progress, &Film) -> Result<(), JobError>,
+    ) -> Result<Rendered, JobError> {
+        let (resume, before) = match self.resume.take() {
+            Some((film, spp, elapsed)) => (Some((film, spp)), elapsed),
+            None => (None, Duration::ZERO),
+        };
+        let key = job.key(scene);
+        let save = |film: &Film, spp: u32, elapsed: Duration| -> Result<(), JobError> {
+            Checkpoint { key: key.clone(), spp, elapsed: before + elapsed, film: film.clone() }
+                .save(&self.checkpoint)
+                .map_err(|reason| JobError::Checkpoint { path: self.checkpoint.clone(), reason })?;
+            save_film(film, spp, &self.output, 0.0).map(|_| ())
+        };
+        let mut last = Instant::now();
+        let r = job.run(scene, resume, |p, film| {
+            on_pass(p, film)?;
+            if last.elapsed() >= self.every {
+                save(film, p.spp_done, p.elapsed)?;
+                last = Instant::now();
+            }
+            Ok(())
+        })?;
+        save(&r.film, r.spp(), r.elapsed)?;
+        Ok(r)
     }
 }

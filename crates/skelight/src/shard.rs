@@ -10,6 +10,9 @@
 //! learn from earlier passes (skelpt's progressive importance) learn from their own shard's
 //! passes only: their merged image is as unbiased as the single render, not equal to it.
 //!
+//! Independent renders (different seeds) merge too ([`merge_independent`]), weighted by
+//! their sample counts.
+//!
 //! A shard's output carries a manifest (which render, which shard, which samples), so that
 //! [`merge`] refuses shards of different renders, a shard given twice (a retried shard
 //! must not count twice) and a missing one, naming the files.
@@ -277,6 +280,40 @@ pub fn merge_files(paths: &[PathBuf]) -> Result<Merged, ShardError> {
         .map(|p| Ok((p.display().to_string(), ShardOutput::load(p)?)))
         .collect::<Result<Vec<_>, ShardError>>()?;
     merge(parts)
+}
+
+/// Merges independent renders of one scene (different seeds) into one image, each weighted
+/// by the sample count its header records (`skelight.spp`), or equally with `equal_weights`
+/// (for foreign images); returns the image and the total weight. Refuses NaN or infinite
+/// pixels, which would spread into every result without a word.
+pub fn merge_independent(paths: &[PathBuf], equal_weights: bool) -> Result<(Image, f64), ShardError> {
+    let mut loaded = Vec::new();
+    for p in paths {
+        let bad = |reason: String| ShardError::Malformed { source_name: p.display().to_string(), reason };
+        let (img, attrs) = Image::load_exr_with_attributes(p)?;
+        if let Some((count, (x, y))) = img.non_finite() {
+            return Err(bad(format!(
+                "{count} pixels are NaN or infinite (the first at x {x}, y {y}); refusing to merge it"
+            )));
+        }
+        let spp = attrs.iter().find(|(k, _)| k == SPP).map(|a| a.1);
+        if let Some(n) = spp.filter(|n| !(*n >= 1.0 && n.fract() == 0.0)) {
+            return Err(bad(format!("its header's sample count {SPP} = {n} is not a positive whole number")));
+        }
+        let n = match (spp, equal_weights) {
+            (_, true) => 1.0,
+            (Some(n), false) => n,
+            (None, false) => {
+                return Err(bad(format!(
+                    "no sample count ({SPP}) in its header; use --equal-weights for foreign images"
+                )))
+            }
+        };
+        loaded.push((img, n));
+    }
+    let total: f64 = loaded.iter().map(|l| l.1).sum();
+    let img = crate::eval::merge_weighted(&loaded).map_err(ShardError::Invalid)?;
+    Ok((img, total))
 }
 
 /// Whether an EXR is a shard (has a manifest), without decoding its film.
