@@ -435,9 +435,6 @@ pub(crate) fn write_text(path: &Path, text: &str) -> Result<()> {
 
 /// Long render that checkpoints to OUT.exr.ckpt and resumes from it after an interruption.
 fn reference(args: ReferenceArgs) -> Result<()> {
-    if args.spp.is_none() && args.time.is_none() {
-        bail!("give --time or --spp");
-    }
     let spec = JobSpec {
         integrator: args.integrator.clone(),
         params: args.params.clone(),
@@ -528,8 +525,11 @@ fn refuse_non_finite(path: &Path, img: &Image, verb: &str) -> Result<()> {
 /// Shards of one render (`render --shard`) are merged exactly, by adding their films, and
 /// only when each shard is given once.
 fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
-    let shards: Vec<bool> = parts.iter().map(|p| skelight::shard::is_shard_file(p)).collect();
+    let shards = parts.iter().map(|p| skelight::shard::is_shard_file(p)).collect::<Result<Vec<bool>, _>>()?;
     if shards.iter().any(|s| *s) {
+        if equal_weights {
+            bail!("--equal-weights is for independent renders; shards merge by their samples");
+        }
         if let Some(i) = shards.iter().position(|s| !s) {
             bail!("{} is not a shard but other inputs are; merge the shards of one render alone", parts[i].display());
         }

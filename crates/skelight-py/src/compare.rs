@@ -30,7 +30,12 @@ pub fn compare<'py>(
     seed: u64,
     threads: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let reference = if let Ok(a) = reference.extract::<PyReadonlyArray3<f32>>() {
+    // Any float array becomes float32 (numpy's own conversion); anything else is a path.
+    let as_f32 = reference
+        .getattr("astype")
+        .and_then(|astype| astype.call1(("float32",)))
+        .and_then(|a| a.extract::<PyReadonlyArray3<f32>>());
+    let reference = if let Ok(a) = as_f32 {
         let a = a.as_array();
         let (h, w, c) = a.dim();
         if c != 3 {
@@ -42,6 +47,9 @@ pub fn compare<'py>(
         let path: std::path::PathBuf = reference.extract()?;
         Image::load(&path).map_err(|e| LoadError::new_err(e.to_string()))?
     };
+    if let Some((count, (x, y))) = reference.non_finite() {
+        return Err(error(format!("the reference has {count} NaN or infinite pixels (the first at x {x}, y {y})")));
+    }
     if !(time > 0.0 && time.is_finite() && every >= 0.0 && every.is_finite()) {
         return Err(error("time must be a positive number of seconds and every at least 0"));
     }

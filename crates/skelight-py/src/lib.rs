@@ -42,6 +42,7 @@ fn _skelight(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(scene::default_scene, m)?)?;
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
     m.add_function(wrap_pyfunction!(render::merge, m)?)?;
+    m.add_function(wrap_pyfunction!(render::render_key, m)?)?;
     m.add_function(wrap_pyfunction!(render::integrators, m)?)?;
     m.add_function(wrap_pyfunction!(render::load_image, m)?)?;
     m.add_function(wrap_pyfunction!(compare::compare, m)?)?;

@@ -56,7 +56,7 @@ impl Render {
     fn samples(&self) -> (u32, u32) {
         (self.manifest.samples.start, self.manifest.samples.end)
     }
-    /// (K, N) for shard K of N; None for a whole render.
+    /// (K, N) for shard K of N; None for a whole render (which pickles as shard (0, 1)).
     #[getter]
     fn shard(&self) -> Option<(u32, u32)> {
         self.sharded.then_some((self.manifest.shard.index, self.manifest.shard.count))
@@ -107,8 +107,7 @@ impl Render {
     #[staticmethod]
     fn from_bytes(data: &[u8]) -> PyResult<Render> {
         let out = ShardOutput::from_bytes("bytes", data).map_err(error)?;
-        let sharded = out.manifest.shard.count > 1;
-        Ok(Render { film: out.film, manifest: out.manifest, sharded, seconds: 0.0, preparation_seconds: 0.0 })
+        Ok(Render { film: out.film, manifest: out.manifest, sharded: true, seconds: 0.0, preparation_seconds: 0.0 })
     }
     /// Reads a shard written by `save` or `skelight render --shard`.
     #[staticmethod]
@@ -133,16 +132,58 @@ impl Render {
     }
 }
 
+/// Turns a params dict into NAME=VALUE pairs (booleans as true/false).
+fn param_pairs(params: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<(String, String)>> {
+    let mut pairs = Vec::new();
+    if let Some(p) = params {
+        for (k, v) in p.iter() {
+            let value = if v.is_instance_of::<pyo3::types::PyBool>() {
+                v.extract::<bool>()?.to_string()
+            } else {
+                v.str()?.to_string()
+            };
+            pairs.push((k.extract::<String>()?, value));
+        }
+    }
+    Ok(pairs)
+}
+
+/// The key a render of `scene` with these settings would carry (`Render.key`): what
+/// `merge` and resumed references compare, to refuse shards of another render.
+#[pyfunction]
+#[pyo3(signature = (scene, integrator = "pt", spp = None, seed = 0, params = None, shard = None))]
+pub fn render_key(
+    scene: &Scene,
+    integrator: &str,
+    spp: Option<u32>,
+    seed: u64,
+    params: Option<&Bound<'_, PyDict>>,
+    shard: Option<(u32, u32)>,
+) -> PyResult<String> {
+    let shard = shard.map(|(k, n)| Shard::new(k, n)).transpose().map_err(error)?;
+    let spec = JobSpec {
+        integrator: integrator.to_string(),
+        params: param_pairs(params)?,
+        spp,
+        seed,
+        shard,
+        ..Default::default()
+    };
+    let s = scene.read();
+    let job = Job::new(&s, scene.label(), &spec).map_err(error)?;
+    Ok(job.key(&s))
+}
+
 /// Renders `scene` with an estimator of the registry (`skelight.integrators()` lists them
 /// with their parameters) and returns a `Render`. Give `spp` or `time` (seconds); `shard`
 /// = (K, N) renders shard K of N of the `spp` samples (merge them with `skelight.merge`).
 /// `progress`, if given, is called after every pass with a dict (spp, target, seconds,
 /// samples_per_second); an exception it raises stops the render and propagates. The GIL
 /// is released while rendering; Ctrl-C stops the render (KeyboardInterrupt) within a pass.
-/// `label` names the scene in the render's key (default: its path), so that shards
-/// rendered from copies of one file at different paths still merge.
+/// The render's key names the scene by its content, not its path, so shards rendered from
+/// copies of one file at different paths merge.
 #[pyfunction]
-#[pyo3(signature = (scene, integrator = "pt", spp = None, time = None, seed = 0, params = None, shard = None, threads = 0, progress = None, label = None))]
+#[pyo3(signature = (scene, integrator = "pt", spp = None, time = None, seed = 0, params = None, shard = None, threads = 0, progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn render(
     py: Python<'_>,
@@ -155,19 +196,8 @@ pub fn render(
     shard: Option<(u32, u32)>,
     threads: usize,
     progress: Option<PyObject>,
-    label: Option<String>,
 ) -> PyResult<Render> {
-    let mut pairs = Vec::new();
-    if let Some(p) = params {
-        for (k, v) in p.iter() {
-            let value = if v.is_instance_of::<pyo3::types::PyBool>() {
-                v.extract::<bool>()?.to_string()
-            } else {
-                v.str()?.to_string()
-            };
-            pairs.push((k.extract::<String>()?, value));
-        }
-    }
+    let pairs = param_pairs(params)?;
     let time = match time {
         Some(t) if !(t > 0.0 && t.is_finite() && t < 1e9) => {
             return Err(error(format!("time = {t}: give a positive number of seconds")))
@@ -178,7 +208,7 @@ pub fn render(
     let shard = shard.map(|(k, n)| Shard::new(k, n)).transpose().map_err(error)?;
     let spec = JobSpec { integrator: integrator.to_string(), params: pairs, spp, time, seed, threads, shard };
     let scene_lock = scene.scene.clone();
-    let label = label.unwrap_or_else(|| scene.label());
+    let label = scene.label();
     let mut raised: Option<PyErr> = None;
     let result = py.allow_threads(|| {
         let scene = scene_lock.read().unwrap_or_else(|e| e.into_inner());

@@ -27,6 +27,12 @@ impl Scene {
         self.scene.read().unwrap_or_else(|e| e.into_inner())
     }
 
+    /// The scene to change, refused while a render reads it (waiting would deadlock: the
+    /// render takes the GIL back after every pass while holding the scene).
+    fn write(&self) -> PyResult<std::sync::RwLockWriteGuard<'_, skelight::scene::Scene>> {
+        self.scene.try_write().map_err(|_| error("the scene is being rendered; change it once the render is done"))
+    }
+
     /// Names the scene in manifests and reports, as the CLI does.
     pub(crate) fn label(&self) -> String {
         self.path
@@ -102,13 +108,13 @@ impl Scene {
         if depth < -1 {
             return Err(error("max_depth must be -1 (unbounded) or at least 0"));
         }
-        self.scene.write().unwrap_or_else(|e| e.into_inner()).settings.max_depth = depth;
+        self.write()?.settings.max_depth = depth;
         Ok(())
     }
     /// Renders at `width`×`height` from now on (the field of view is kept).
     fn set_resolution(&self, width: i64, height: i64) -> PyResult<()> {
         skelight::scene::check_resolution(width, height).map_err(error)?;
-        self.scene.write().unwrap_or_else(|e| e.into_inner()).set_resolution(width as usize, height as usize);
+        self.write()?.set_resolution(width as usize, height as usize);
         Ok(())
     }
     /// The camera: position, forward direction, horizontal and vertical field of view

@@ -85,6 +85,48 @@ def test_merge_refuses_missing_duplicate_and_foreign_shards(c01):
         skelight.merge([parts[0], other, parts[2]])
 
 
+def test_shard_keys_tell_renders_apart(c01):
+    """The key holds the scene's content and every parameter that changes the image: shards
+    of bpt with the power heuristic do not merge with the balance heuristic's, nor shards
+    of a scene whose colours a define changed; copies at other paths still merge."""
+    scene = small(c01, 16, 16)
+    a = [skelight.render(scene, integrator="bpt", spp=4, shard=(k, 2)) for k in range(2)]
+    b = skelight.render(scene, integrator="bpt", spp=4, shard=(1, 2), params={"heuristic": "power"})
+    with pytest.raises(skelight.SkelightError, match="not a shard of"):
+        skelight.merge([a[0], b])
+    assert a[0].key == skelight.render_key(scene, integrator="bpt", spp=4, shard=(0, 2))
+    other = small(c01, 16, 16)
+    other.max_depth = 3
+    c = skelight.render(other, integrator="bpt", spp=4, shard=(1, 2))
+    with pytest.raises(skelight.SkelightError, match="not a shard of"):
+        skelight.merge([a[0], c])
+
+
+def test_learning_estimators_refuse_shards(c01):
+    """skelbpt and adaptive skelpt learn from earlier passes, which a shard never sees."""
+    scene = small(c01, 16, 16)
+    for integrator, params in [("skelbpt", {}), ("skelpt", {})]:
+        with pytest.raises(skelight.SkelightError, match="learns from its earlier passes"):
+            skelight.render(scene, integrator=integrator, spp=4, shard=(0, 2), params=params)
+    parts = [skelight.render(scene, integrator="skelpt", spp=4, shard=(k, 2), params={"adaptive": False})
+             for k in range(2)]
+    whole = skelight.render(scene, integrator="skelpt", spp=4, params={"adaptive": False})
+    np.testing.assert_allclose(np.asarray(skelight.merge(parts)), np.asarray(whole), rtol=2e-7, atol=0)
+
+
+def test_scene_changes_refused_while_rendering(c01):
+    """Changing the scene from a progress callback would deadlock; it raises instead."""
+    scene = small(c01, 32, 32)
+
+    def resize(p):
+        scene.set_resolution(8, 8)
+
+    with pytest.raises(skelight.SkelightError, match="being rendered"):
+        skelight.render(scene, spp=64, progress=resize)
+    scene.set_resolution(8, 8)
+    assert scene.width == 8
+
+
 def test_errors_are_exceptions_naming_the_file(tmp_path, c01):
     with pytest.raises(skelight.LoadError, match="missing.xml"):
         skelight.load_file(tmp_path / "missing.xml")
@@ -153,6 +195,11 @@ def test_compare_returns_error_curves(c01):
         assert np.all(np.diff(c["spp"]) > 0) and c["image"].shape == (32, 32, 3)
     with pytest.raises(skelight.SkelightError, match="reference"):
         skelight.compare(scene, reference[:8], ["pt"], time=0.1)
+    assert "pt" in skelight.compare(scene, reference.astype(np.float64), ["pt"], time=0.1)
+    broken = reference.copy()
+    broken[3, 4, 1] = np.nan
+    with pytest.raises(skelight.SkelightError, match="NaN"):
+        skelight.compare(scene, broken, ["pt"], time=0.1)
 
 
 def test_integrators_listed_with_parameters():

@@ -42,6 +42,11 @@ def test_four_shards_equal_the_single_render(client, c01):
     np.testing.assert_allclose(np.asarray(r), single(c01, 64, 3), rtol=2e-7, atol=0)
 
 
+def test_one_shard(client, c01):
+    r = skelight.dask.render(str(c01), client, spp=8, shards=1, seed=8, resolution=SIZE, threads=1)
+    np.testing.assert_allclose(np.asarray(r), single(c01, 8, 8), rtol=2e-7, atol=0)
+
+
 def test_shipped_scene_file(client, c01, tmp_path):
     # The file is shipped as bytes; its OBJ-free content loads anywhere.
     r = skelight.dask.render(str(c01), client, spp=16, shards=2, seed=4, resolution=SIZE, threads=1, ship=True)
@@ -92,3 +97,7 @@ def test_reference_resumes_from_its_shards(client, c01, tmp_path):
                                     integrator="pt", threads=1)
     assert np.array_equal(np.asarray(first), np.asarray(again))
     np.testing.assert_allclose(skelight.load_image(out), single(c01, 16, 6), rtol=2e-7, atol=0)
+    # The kept shards belong to that render: another seed is refused, not mixed in.
+    with pytest.raises(skelight.SkelightError, match="another render"):
+        skelight.dask.reference(str(c01), client, str(out), spp=16, shards=4, seed=7, resolution=SIZE,
+                                integrator="pt", threads=1)

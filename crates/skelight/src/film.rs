@@ -399,6 +399,17 @@ impl Film {
         img
     }
 
+    /// Adds samples gathered elsewhere (the GPU's kernels) to pixel `i`, under the box filter
+    /// (each sample counts for its own pixel with weight 1): their sum, sum of squares and
+    /// count.
+    pub fn add_box_samples(&mut self, i: usize, sum: [f64; 3], sum_sq: [f64; 3], count: f64) {
+        for c in 0..3 {
+            self.sum[i][c] += sum[c];
+            self.sum_sq[i][c] += sum_sq[c];
+        }
+        self.weight[i] += count;
+    }
+
     /// Adds `other`'s samples and splats to this film (a shard to the merge of the others):
     /// the sums add, so the merge of a render's shards is that render, up to the order in
     /// which the f64 sums were added.

@@ -98,6 +98,39 @@ impl Rendered {
     }
 }
 
+/// More threads than any machine has: a typo, which would take minutes to spawn.
+const MAX_THREADS: usize = 4096;
+
+/// A hash of what the scene renders (geometry, materials, lights, camera, settings), stable
+/// across processes and machines (FNV-1a over the values), for render keys.
+pub fn fingerprint(scene: &Scene) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut eat = |bytes: &[u8]| {
+        for b in bytes {
+            h = (h ^ *b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    for m in &scene.meshes {
+        for p in &m.positions {
+            [p.x, p.y, p.z].iter().for_each(|v| eat(&v.to_bits().to_le_bytes()));
+        }
+        for n in &m.normals {
+            [n.x, n.y, n.z].iter().for_each(|v| eat(&v.to_bits().to_le_bytes()));
+        }
+        m.indices.iter().flatten().for_each(|i| eat(&i.to_le_bytes()));
+        eat(format!("{} {:?} {:?}", m.material, m.emission, m.sphere).as_bytes());
+    }
+    for m in &scene.materials {
+        eat(format!("{:?} {:?}", m.bsdf, m.perturbation).as_bytes());
+    }
+    for l in &scene.lights {
+        eat(format!("{l:?}").as_bytes());
+    }
+    eat(format!("{:?} {:?} {:?}", scene.camera.to_world, scene.camera.tan_half, scene.settings.filter).as_bytes());
+    eat(format!("{} {}", scene.camera.aperture_radius, scene.camera.focus_distance).as_bytes());
+    h
+}
+
 /// Writes a film's image to OUT.exr, with its sample count in the header (for `merge`), and
 /// OUT.png, each atomically; returns the image.
 pub fn save_film(film: &Film, spp: u32, output: &Path, exposure: f32) -> Result<Image, JobError> {
@@ -124,6 +157,19 @@ impl Job {
                 JobError::Invalid("a shard needs a sample count and no time budget: shards split the samples".into())
             })?;
             shard.samples(spp)?;
+            if integrator.learns_across_passes() {
+                return Err(JobError::Invalid(format!(
+                    "{} learns from its earlier passes, which a shard never sees: its shards would not merge into \
+                     the single render. Render it whole, or merge independent renders (different seeds)",
+                    integrator.describe()
+                )));
+            }
+        }
+        if spec.threads > MAX_THREADS {
+            return Err(JobError::Invalid(format!(
+                "{} threads: use at most {MAX_THREADS} (0: all cores)",
+                spec.threads
+            )));
         }
         if let Some(why) = integrator.limitation(scene) {
             warnings.push(format!("{why}; the image will miss that light"));
@@ -133,12 +179,13 @@ impl Job {
     }
 
     /// Identifies what is rendered, so that a checkpoint is resumed and shards merged only
-    /// with the same render.
+    /// with the same render: the scene's content (not its path, which differs between
+    /// machines), the estimator with its parameters, the seed, size and depth.
     pub fn key(&self, scene: &Scene) -> String {
         let s = &scene.settings;
         let mut key = format!(
-            "{}|{}|seed {}|{}x{}|depth {}",
-            self.label,
+            "scene {:016x}|{}|seed {}|{}x{}|depth {}",
+            fingerprint(scene),
             self.integrator.describe(),
             self.opts.seed,
             s.width,

@@ -7,8 +7,8 @@
 //! image), and merging adds them. The merged image therefore equals the single render up
 //! to the order in which f64 sums were added: after rounding to the image's f32, most
 //! pixels are bit-identical and the rest differ in the last bit (tested). Estimators that
-//! learn from earlier passes (skelpt's progressive importance) learn from their own shard's
-//! passes only: their merged image is as unbiased as the single render, not equal to it.
+//! learn from earlier passes ([`crate::integrator::Integrator::learns_across_passes`]:
+//! skelbpt, adaptive skelpt) refuse shards: a shard never sees the passes before it.
 //!
 //! Independent renders (different seeds) merge too ([`merge_independent`]), weighted by
 //! their sample counts.
@@ -251,6 +251,20 @@ pub fn merge(parts: Vec<(String, ShardOutput)>) -> Result<Merged, ShardError> {
     if !missing.is_empty() {
         return Err(ShardError::Missing { missing, count });
     }
+    // Each shard must hold exactly its slice of the whole render's samples.
+    let spp = slots.iter().flatten().map(|(_, p)| p.manifest.samples.end).max().unwrap_or(0);
+    for (name, part) in slots.iter().flatten() {
+        let expected = part.manifest.shard.samples(spp).map_err(|e| ShardError::Invalid(e.to_string()))?;
+        if part.manifest.samples != expected {
+            return Err(ShardError::Malformed {
+                source_name: name.clone(),
+                reason: format!(
+                    "shard {} holds samples {:?}, not its slice {expected:?} of {spp}",
+                    part.manifest.shard, part.manifest.samples
+                ),
+            });
+        }
+    }
     let mut parts = slots.into_iter().flatten();
     let (_, head) = parts.next().expect("count ≥ 1 and none missing");
     let mut spp = head.spp();
@@ -316,9 +330,9 @@ pub fn merge_independent(paths: &[PathBuf], equal_weights: bool) -> Result<(Imag
     Ok((img, total))
 }
 
-/// Whether an EXR is a shard (has a manifest), without decoding its film.
-pub fn is_shard_file(path: &Path) -> bool {
-    Image::load_exr_annotated(path).is_ok_and(|(_, notes)| notes.text(SHARD).is_some())
+/// Whether an EXR is a shard (has a manifest); an error for a file that cannot be read.
+pub fn is_shard_file(path: &Path) -> Result<bool, ShardError> {
+    Ok(Image::load_exr_annotated(path)?.1.text(SHARD).is_some())
 }
 
 #[cfg(test)]
@@ -363,6 +377,10 @@ mod tests {
         assert!(e.contains("part1 is not a shard of a"), "{e}");
         let e = merge(vec![part(0, 2, "a"), part(1, 3, "a")]).unwrap_err().to_string();
         assert!(e.contains("not a shard of a (2 shards)"), "{e}");
+        let mut odd = part(1, 3, "a");
+        odd.1.manifest.samples = 2..6;
+        let e = merge(vec![part(0, 3, "a"), odd, part(2, 3, "a")]).unwrap_err().to_string();
+        assert!(e.contains("holds samples 2..6, not its slice"), "{e}");
     }
 
     #[test]
@@ -378,9 +396,10 @@ mod tests {
         let back = ShardOutput::load(&path).unwrap();
         assert_eq!(back.manifest, p.manifest);
         assert_eq!(back.film.to_bytes(), p.film.to_bytes());
-        assert!(is_shard_file(&path));
+        assert!(is_shard_file(&path).unwrap());
         Image::new(2, 1).save_exr(&dir.join("plain.exr")).unwrap();
-        assert!(!is_shard_file(&dir.join("plain.exr")));
+        assert!(!is_shard_file(&dir.join("plain.exr")).unwrap());
+        assert!(is_shard_file(&dir.join("missing.exr")).is_err());
         let e = ShardOutput::load(&dir.join("plain.exr")).unwrap_err().to_string();
         assert!(e.contains("plain.exr") && e.contains("not a shard"), "{e}");
         let _ = std::fs::remove_dir_all(dir);

@@ -24,6 +24,7 @@ from ._skelight import (  # noqa: F401
     load_image,
     merge,
     render,
+    render_key,
 )
 
 __all__ = [
@@ -38,4 +39,5 @@ __all__ = [
     "load_image",
     "merge",
     "render",
+    "render_key",
 ]

@@ -1,6 +1,7 @@
 """Type stubs of the compiled module (see the docstrings in crates/skelight-py/src)."""
 
 from os import PathLike
+from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -12,7 +13,7 @@ class SkelightError(RuntimeError): ...
 class LoadError(SkelightError): ...
 
 class Scene:
-    path: Optional[str]
+    path: Optional[Path]
     width: int
     height: int
     triangles: int
@@ -54,8 +55,15 @@ def render(
     shard: Optional[Tuple[int, int]] = None,
     threads: int = 0,
     progress: Optional[Callable[[Dict[str, Any]], None]] = None,
-    label: Optional[str] = None,
 ) -> Render: ...
+def render_key(
+    scene: Scene,
+    integrator: str = "pt",
+    spp: Optional[int] = None,
+    seed: int = 0,
+    params: Optional[Dict[str, Any]] = None,
+    shard: Optional[Tuple[int, int]] = None,
+) -> str: ...
 def merge(parts: Sequence[Union[Render, str, PathLike[str]]]) -> Render: ...
 def load_image(path: Union[str, PathLike[str]]) -> npt.NDArray[np.float32]: ...
 def integrators() -> Dict[str, Dict[str, Any]]: ...

@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+import uuid
 from pathlib import Path
 from typing import Any, Callable, Dict, Optional, Tuple
 
@@ -41,9 +42,10 @@ def _scene_on_worker(scene_path: str, scene_bytes: Optional[bytes]) -> str:
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / Path(scene_path).name
     if not path.exists():
-        tmp = folder / f".{path.name}.{os.getpid()}.tmp"
-        tmp.write_bytes(scene_bytes)
-        os.replace(tmp, path)
+        # A unique temporary name: several tasks of one worker may write it at once.
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=f".{path.name}.", delete=False) as tmp:
+            tmp.write(scene_bytes)
+        os.replace(tmp.name, path)
     return str(path)
 
 
@@ -59,7 +61,6 @@ def render_shard(
     max_depth: Optional[int] = None,
     defines: Optional[Dict[str, Any]] = None,
     threads: int = 0,
-    label: Optional[str] = None,
     scene_bytes: Optional[bytes] = None,
 ) -> skelight.Render:
     """Renders shard ``index`` of ``count`` (what each Dask task runs)."""
@@ -76,7 +77,6 @@ def render_shard(
         params=params,
         shard=(index, count),
         threads=threads,
-        label=label or Path(scene_path).name,
     )
 
 
@@ -93,15 +93,16 @@ def _run(
     **job: Any,
 ) -> skelight.Render:
     """Submits the shards not in ``done``, collects them into ``done`` as they finish (keyed
-    by shard index: a shard that ran twice is kept once) and merges all of them."""
-    from dask.base import tokenize
+    by shard index: a shard that ran twice is kept once) and merges all of them. Keys are
+    unique per call, so a rerun never gets back a failed run's futures; on an error the
+    remaining tasks are cancelled."""
     from dask.distributed import as_completed
 
     if not 1 <= shards <= spp:
         raise skelight.SkelightError(f"shards = {shards}: use 1 to spp ({spp}) shards")
     scene_path = str(scene_path)
     scene_bytes = Path(scene_path).read_bytes() if ship else None
-    token = tokenize(scene_path, spp, shards, scene_bytes, sorted(job.items(), key=lambda kv: kv[0]))
+    token = uuid.uuid4().hex
     futures = [
         client.submit(
             render_shard,
@@ -120,12 +121,15 @@ def _run(
     ]
     if progress is not None and done:
         progress(len(done), shards)
-    for _, r in as_completed(futures, with_results=True):
-        if on_result is not None:
-            on_result(r)
-        done[r.shard[0]] = r
-        if progress is not None:
-            progress(len(done), shards)
+    try:
+        for _, r in as_completed(futures, with_results=True):
+            if on_result is not None:
+                on_result(r)
+            done[r.shard[0]] = r
+            if progress is not None:
+                progress(len(done), shards)
+    finally:
+        client.cancel([f for f in futures if not f.done()])
     return skelight.merge([done[k] for k in range(shards)])
 
 
@@ -166,6 +170,20 @@ def reference(scene_path: str, client: Any, output: str, spp: int, shards: int, 
     folder.mkdir(parents=True, exist_ok=True)
     name = lambda k: folder / f"shard-{k:05d}-of-{shards:05d}.exr"  # noqa: E731
     done = {k: skelight.Render.load(str(name(k))) for k in range(shards) if name(k).exists()}
+    if done and Path(scene_path).exists():
+        # Shards kept from another render (other defines, parameters, seed) must not count.
+        scene = skelight.load_file(scene_path, **(options.get("defines") or {}))
+        if options.get("resolution") is not None:
+            scene.set_resolution(*options["resolution"])
+        if options.get("max_depth") is not None:
+            scene.max_depth = options["max_depth"]
+        expected = skelight.render_key(scene, integrator=integrator, spp=spp, seed=options.get("seed", 0),
+                                       params=options.get("params"), shard=(0, shards))
+        stale = [k for k, r in done.items() if r.key != expected]
+        if stale:
+            raise skelight.SkelightError(
+                f"{folder} holds shards of another render ({done[stale[0]].key}, not {expected}); "
+                "remove it or choose another output")
     merged = _run(scene_path, client, spp, shards, done, on_result=lambda r: r.save(str(name(r.shard[0]))),
                   integrator=integrator, **options)
     merged.save(str(output))

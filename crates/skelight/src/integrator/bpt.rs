@@ -173,6 +173,16 @@ impl Integrator for Bpt {
         let pixels = scene.settings.width * scene.settings.height;
         into.light_paths.trace(scene, pixels, seed, index, self.max_depth(scene));
     }
+    fn describe(&self) -> String {
+        let mut d = format!("bpt heuristic={}", format!("{:?}", self.heuristic).to_lowercase());
+        if self.only != Recorded::All {
+            d += &format!(" only={:?}", self.only);
+        }
+        if let Some(m) = self.max_depth {
+            d += &format!(" max_depth={m}");
+        }
+        d
+    }
     fn new_scratch(&self) -> Scratch {
         Scratch::new(PixelScratch::default())
     }

@@ -60,6 +60,12 @@ pub trait Integrator: Sync + Send {
     /// Whatever it changes applies from the next pass on: within a pass the estimator is
     /// fixed, so each pass is unbiased on its own.
     fn finish_pass(&mut self, _scene: &Scene, _scratches: &mut [Scratch]) {}
+    /// Whether [`Integrator::finish_pass`] changes how later passes sample (learning from
+    /// earlier ones). A shard of such an estimator never sees the passes before it, so its
+    /// merge would not equal the single render: shards refuse it.
+    fn learns_across_passes(&self) -> bool {
+        false
+    }
     /// Light paths traced per camera sample (normalises splats; 0 if none).
     fn splats_per_sample(&self) -> u64 {
         0

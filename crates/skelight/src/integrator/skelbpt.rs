@@ -238,6 +238,10 @@ impl Integrator for SkeletonBpt {
         resampled::sample_pixel(&self.bpt, scene, (x, y), rng, it, buffers, cx.tile, joins);
     }
 
+    fn learns_across_passes(&self) -> bool {
+        true
+    }
+
     fn finish_pass(&mut self, _scene: &Scene, scratches: &mut [Scratch]) {
         let Some(p) = self.prepared.as_mut() else { return };
         for s in scratches.iter_mut() {

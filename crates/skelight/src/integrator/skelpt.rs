@@ -304,6 +304,10 @@ impl Integrator for SkeletonPathTracer {
         cx.tile.add(pos, l);
     }
 
+    fn learns_across_passes(&self) -> bool {
+        self.adaptive
+    }
+
     fn finish_pass(&mut self, _scene: &Scene, scratches: &mut [Scratch]) {
         let Some(p) = self.prepared.as_mut().filter(|_| self.adaptive) else { return };
         for s in scratches.iter_mut() {
