@@ -24,11 +24,24 @@ elif [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
     fi
 fi
 
+# The GPU crate's tests run on any Vulkan adapter: Mesa's lavapipe (a CPU implementation)
+# where there is no GPU, installed here when this script may.
+if [ ! -e /usr/share/vulkan/icd.d/lvp_icd.x86_64.json ] && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    echo "installing mesa-vulkan-drivers (lavapipe) for the GPU tests"
+    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mesa-vulkan-drivers libvulkan1) >/dev/null 2>&1 || true
+fi
+if ls /usr/share/vulkan/icd.d/*.json >/dev/null 2>&1; then
+    export SKELIGHT_REQUIRE_GPU=1   # an adapter is expected: its absence is a failure
+else
+    echo "note: no Vulkan driver; the GPU tests will say so and pass"
+fi
+
 cargo fmt --all -- --check
 cargo clippy --all-targets --release -- -D warnings
 cargo test --release --workspace --exclude skelight-py   # its tests are in Python, below
 # The Python package (import skelight) and rendering on a Dask LocalCluster.
 ./scripts/python.sh
+cargo clippy --release -p skelight-cli --features gpu -- -D warnings   # render --device gpu
 if [ -n "$embree" ]; then
     cargo clippy --all-targets --release --features embree -p skelight -p skelight-cli -p skelight-shape -- -D warnings
     cargo test --release -p skelight --features embree --lib geometry

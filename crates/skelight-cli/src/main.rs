@@ -2,6 +2,7 @@
 
 mod bench;
 mod compare;
+mod gpu_cmd;
 mod render_cmd;
 mod skeleton;
 mod skeleton_pictures;

@@ -23,62 +23,66 @@ use crate::{
 #[derive(clap::Args)]
 pub(crate) struct RenderArgs {
     /// Scene file (.xml). Omit to render the embedded default scene.
-    scene: Option<PathBuf>,
+    pub(crate) scene: Option<PathBuf>,
     /// Output image (.exr); a tone-mapped PNG is written beside it.
     #[arg(short, long, default_value = "render.exr")]
-    output: PathBuf,
+    pub(crate) output: PathBuf,
     /// Estimator: pt, lt, bpt, ibpt, skelpt (`--help` lists them with their parameters).
     #[arg(short, long, default_value = "pt")]
-    integrator: String,
+    pub(crate) integrator: String,
     /// An estimator parameter, NAME=VALUE (repeatable); overrides the scene's
     /// `<integrator>` properties when the scene names the same estimator.
     #[arg(short = 'P', long = "param", value_parser = parse_param)]
-    params: Vec<(String, String)>,
+    pub(crate) params: Vec<(String, String)>,
     /// Samples per pixel (default: the scene's sampler, or 16 for the default scene).
     #[arg(long, conflicts_with = "time")]
-    spp: Option<u32>,
+    pub(crate) spp: Option<u32>,
     /// Render for this long instead of a sample count (300, 90s, 5m, 2h).
     #[arg(long, value_parser = parse_duration)]
-    time: Option<Duration>,
+    pub(crate) time: Option<Duration>,
     /// Random seed; equal seeds give identical images, different seeds independent ones.
     #[arg(long, default_value_t = 0)]
-    seed: u64,
+    pub(crate) seed: u64,
     #[command(flatten)]
-    setup: SceneSetup,
+    pub(crate) setup: SceneSetup,
     /// PNG exposure in stops.
     #[arg(long, default_value_t = 0.0)]
-    exposure: f32,
+    pub(crate) exposure: f32,
     /// Scene parameter substitution, as Mitsuba's -D name=value.
     #[arg(short = 'D', value_parser = parse_define)]
-    define: Vec<(String, String)>,
+    pub(crate) define: Vec<(String, String)>,
     /// No progress bar.
     #[arg(short, long)]
-    quiet: bool,
+    pub(crate) quiet: bool,
     /// bpt's MIS heuristic: balance or power (as --param heuristic=…).
     #[arg(long, value_parser = parse_heuristic)]
-    heuristic: Option<Heuristic>,
+    pub(crate) heuristic: Option<Heuristic>,
     /// skelpt only: also write pictures of what guides it to DIR: the importance nodes and
     /// directions over the skeleton (importance_view.png), the node each pixel's first hit
     /// maps to (node_per_pixel.png), and importance.json.
     #[arg(long, value_name = "DIR")]
-    debug_skeleton: Option<PathBuf>,
+    pub(crate) debug_skeleton: Option<PathBuf>,
     /// bpt only: also write each (s, t) strategy's weighted contribution to DIR/sS_tT.exr
     /// (and .png, and their means to DIR/strategies.csv). Renders once per strategy with the
     /// same random numbers, so the images add up to the full render.
     #[arg(long, value_name = "DIR")]
-    debug_strategies: Option<PathBuf>,
+    pub(crate) debug_strategies: Option<PathBuf>,
     /// skelbpt and icbpt: also write the joins drawn from each resampling distribution (V, U,
     /// C, and the fallback; icbpt's V is Georgiev's full distribution) and the strategies not resampled to DIR/NAME.exr (and .png, their
     /// means to DIR/distributions.csv; thesis Fig. 106), rendered with the same random
     /// numbers so that they add up to the full render, and (skelbpt) the nodes the last pass
     /// built tables for over the skeleton (nodes_view.png).
     #[arg(long, value_name = "DIR")]
-    debug_distributions: Option<PathBuf>,
+    pub(crate) debug_distributions: Option<PathBuf>,
     /// Render only shard K of N (from 0) of the --spp samples: a deterministic slice of the
     /// sample indices, written with its film and a manifest in the EXR header, so that
     /// `skelight merge` of all N shards gives the single render (up to f64 summation order).
     #[arg(long, value_name = "K/N", value_parser = parse_shard)]
-    shard: Option<Shard>,
+    pub(crate) shard: Option<Shard>,
+    /// Where to render: cpu, or gpu (pt only for now, on the first Vulkan adapter: a GPU, or
+    /// lavapipe; needs a build with `--features gpu` and a scene inside the GPU's subset).
+    #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
+    pub(crate) device: String,
 }
 
 fn parse_shard(s: &str) -> Result<Shard, String> {
@@ -244,6 +248,9 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
     let mut params = args.params.clone();
     if let Some(h) = args.heuristic {
         params.push(("heuristic".into(), format!("{h:?}").to_lowercase()));
+    }
+    if args.device == "gpu" {
+        return crate::gpu_cmd::render(&args);
     }
     if args.shard.is_some()
         && (args.debug_skeleton.is_some() || args.debug_strategies.is_some() || args.debug_distributions.is_some())

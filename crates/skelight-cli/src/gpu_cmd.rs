@@ -1,0 +1,53 @@
+//! `render --device gpu`: path tracing on the GPU (crates/skelight-gpu), written like a CPU
+//! render (same EXR with its sample count, so `merge` combines GPU and CPU renders).
+
+use anyhow::{bail, Result};
+
+use crate::render_cmd::RenderArgs;
+
+#[cfg(feature = "gpu")]
+pub(crate) fn render(args: &RenderArgs) -> Result<()> {
+    use anyhow::Context;
+    if skelight::integrator::registry::find(&args.integrator)?.name != "pt" || !args.params.is_empty() {
+        bail!("--device gpu renders --integrator pt (without parameters) for now; ibpt on the GPU is not built yet");
+    }
+    if args.time.is_some() || args.shard.is_some() || args.debug_skeleton.is_some() {
+        bail!("--device gpu takes --spp (no --time, --shard or --debug-… yet)");
+    }
+    let mut scene = crate::load_scene(args.scene.as_deref(), &args.define)?;
+    args.setup.apply(&mut scene)?;
+    let spp = args.spp.unwrap_or(if args.scene.is_some() { scene.settings.spp } else { 16 });
+    if spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let mut gpu = skelight_gpu::GpuPt::new(&scene)?;
+    eprintln!("GPU: {}", gpu.adapter);
+    let start = std::time::Instant::now();
+    let mut film = skelight::film::Film::new(scene.settings.width, scene.settings.height, scene.settings.filter);
+    gpu.render_into(&mut film, args.seed, 0, spp, |done| {
+        if !args.quiet {
+            eprint!("\r{done}/{spp} spp");
+        }
+    })?;
+    let secs = start.elapsed().as_secs_f64();
+    if !args.quiet {
+        eprintln!();
+    }
+    let img = crate::write_outputs(&film, spp, &args.output, args.exposure)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    let samples = spp as f64 * (scene.settings.width * scene.settings.height) as f64;
+    eprintln!(
+        "done: {spp} spp in {secs:.2} s on the GPU ({:.2} Msamples/s), mean RGB {:.4} {:.4} {:.4} → {}",
+        samples / secs / 1e6,
+        img.mean().r,
+        img.mean().g,
+        img.mean().b,
+        args.output.display()
+    );
+    Ok(())
+}
+
+#[cfg(not(feature = "gpu"))]
+pub(crate) fn render(_: &RenderArgs) -> Result<()> {
+    bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu")
+}

@@ -1,0 +1,347 @@
+//! The CPU scene flattened into the storage buffers the kernels read: triangles, a binary BVH
+//! (depth-first, a miss link per node, for stackless traversal), materials, emitting
+//! triangles with their pick probabilities, and the camera. A scene outside the feature
+//! subset is refused with what is outside it: the GPU never renders a silently different
+//! image.
+
+use bytemuck::{Pod, Zeroable};
+use skelight::film::Filter;
+use skelight::light::Light;
+use skelight::material::Bsdf;
+use skelight::math::{vec3, Vec3};
+use skelight::scene::Scene;
+use skelight::texture::Texture;
+
+use crate::GpuError;
+
+pub const NONE: u32 = u32::MAX;
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug)]
+pub struct Node {
+    pub lo: [f32; 3],
+    pub first: u32,
+    pub hi: [f32; 3],
+    pub count: u32,
+    pub miss: u32,
+    pub pad: [u32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug)]
+pub struct Tri {
+    pub v0: [f32; 3],
+    pub material: u32,
+    pub v1: [f32; 3],
+    pub emitter: u32,
+    pub v2: [f32; 3],
+    /// 1: shading normals in [`Flat::normals`].
+    pub flags: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug)]
+pub struct Material {
+    pub reflectance: [f32; 3],
+    /// 1: two-sided.
+    pub flags: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug)]
+pub struct Emitter {
+    pub radiance: [f32; 3],
+    pub tri: u32,
+    pub cdf: f32,
+    pub pick: f32,
+    pub area: f32,
+    pub pad: u32,
+}
+
+/// The kernel's uniform block (`Params` in the WGSL), 128 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
+pub struct Params {
+    pub cam_pos: [f32; 4],
+    pub cam_x: [f32; 4],
+    pub cam_y: [f32; 4],
+    pub cam_z: [f32; 4],
+    pub tan_half: [f32; 2],
+    pub near_clip: f32,
+    pub eps_scale: f32,
+    pub width: u32,
+    pub height: u32,
+    pub seed_lo: u32,
+    pub seed_hi: u32,
+    pub first_sample: u32,
+    pub samples: u32,
+    pub max_depth: i32,
+    pub rr_depth: i32,
+    pub emitters: u32,
+    pub x0: u32,
+    pub y0: u32,
+    pub pad: u32,
+}
+
+/// Everything the kernels read of a scene.
+pub struct Flat {
+    pub nodes: Vec<Node>,
+    pub tris: Vec<Tri>,
+    /// Three vertex normals per triangle (w unused; zero without shading normals).
+    pub normals: Vec<[f32; 4]>,
+    pub materials: Vec<Material>,
+    pub emitters: Vec<Emitter>,
+    /// The camera and settings part of the uniform block (the rest is set per dispatch).
+    pub params: Params,
+}
+
+/// What the GPU renders today; anything else is refused by [`flatten`].
+pub const FEATURES: &str = "diffuse BSDFs with constant reflectance (one- or two-sided), emitters on \
+    triangle meshes (area lights), shading normals, pinhole cameras, the box filter; no alpha \
+    masks, exact spheres, textures, other BSDFs or other lights yet";
+
+fn unsupported(what: String) -> GpuError {
+    GpuError::Unsupported(format!("{what}; the GPU renders {FEATURES}"))
+}
+
+/// The material's GPU form, or why it has none.
+fn material(bsdf: &Bsdf, name: &str) -> Result<Material, GpuError> {
+    let constant = |t: &Texture| match t {
+        Texture::Constant(c) => Ok([c.r, c.g, c.b]),
+        _ => Err(unsupported(format!("material '{name}' has a textured reflectance"))),
+    };
+    match bsdf {
+        Bsdf::Diffuse(d) => Ok(Material { reflectance: constant(&d.reflectance)?, flags: 0 }),
+        Bsdf::Black => Ok(Material { reflectance: [0.0; 3], flags: 0 }),
+        Bsdf::TwoSided(front, back) => match (front.as_ref(), back.as_ref()) {
+            (Bsdf::Diffuse(f), Bsdf::Diffuse(b)) if constant(&f.reflectance)? == constant(&b.reflectance)? => {
+                Ok(Material { reflectance: constant(&f.reflectance)?, flags: 1 })
+            }
+            _ => Err(unsupported(format!(
+                "material '{name}' is two-sided with other than the same diffuse on both sides"
+            ))),
+        },
+        other => Err(unsupported(format!("material '{name}' is {}", bsdf_name(other)))),
+    }
+}
+
+fn bsdf_name(b: &Bsdf) -> &'static str {
+    match b {
+        Bsdf::Diffuse(_) => "diffuse",
+        Bsdf::RoughDiffuse(_) => "roughdiffuse",
+        Bsdf::Conductor(_) => "conductor",
+        Bsdf::RoughConductor(_) => "roughconductor",
+        Bsdf::Dielectric(_) => "dielectric",
+        Bsdf::ThinDielectric(_) => "thindielectric",
+        Bsdf::RoughDielectric(_) => "roughdielectric",
+        Bsdf::Plastic(_) => "plastic",
+        Bsdf::RoughPlastic(_) => "roughplastic",
+        Bsdf::Phong(_) => "phong",
+        Bsdf::Ward(_) => "ward",
+        Bsdf::Coating(_) => "coating",
+        Bsdf::TwoSided(..) => "twosided",
+        Bsdf::Black => "black",
+    }
+}
+
+pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
+    let s = &scene.settings;
+    if s.filter != Filter::Box {
+        return Err(unsupported(format!("the film's filter is {:?}", s.filter)));
+    }
+    let cam = &scene.camera;
+    if cam.aperture_radius > 0.0 {
+        return Err(unsupported("the camera is a thin lens".into()));
+    }
+    for light in &scene.lights {
+        if !matches!(light, Light::Area(_)) {
+            return Err(unsupported("the scene has a light other than an area light".into()));
+        }
+    }
+    let materials = scene
+        .materials
+        .iter()
+        .map(|m| {
+            if m.perturbation.is_some() {
+                return Err(unsupported(format!("material '{}' has a bump or normal map", m.name)));
+            }
+            material(&m.bsdf, &m.name)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut tris = Vec::new();
+    let mut normals = Vec::new();
+    let mut emitting: Vec<(u32, [f32; 3], f32)> = Vec::new();
+    for mesh in &scene.meshes {
+        if mesh.alpha.is_some() {
+            return Err(unsupported(format!("mesh '{}' has an alpha mask", mesh.name)));
+        }
+        if mesh.sphere.is_some() && mesh.emission.is_none() {
+            return Err(unsupported(format!("mesh '{}' is an exact sphere", mesh.name)));
+        }
+        for i in 0..mesh.indices.len() {
+            let [a, b, c] = mesh.triangle(i);
+            let area = 0.5 * (b - a).cross(c - a).length();
+            let mut emitter = NONE;
+            if let Some(l) = mesh.emission.filter(|l| l.max_component() > 0.0 && area > 0.0) {
+                emitter = emitting.len() as u32;
+                emitting.push((tris.len() as u32, [l.r, l.g, l.b], area));
+            }
+            let p = |v: Vec3| [v.x, v.y, v.z];
+            let smooth = !mesh.normals.is_empty();
+            tris.push(Tri { v0: p(a), material: mesh.material, v1: p(b), emitter, v2: p(c), flags: smooth as u32 });
+            for k in mesh.indices[i] {
+                let n = if smooth { mesh.normals[k as usize] } else { Vec3::ZERO };
+                normals.push([n.x, n.y, n.z, 0.0]);
+            }
+        }
+    }
+    if tris.is_empty() {
+        return Err(GpuError::Unsupported("the scene has no triangles".into()));
+    }
+    // Emitting triangles by power (area × luminance of their radiance).
+    let power: Vec<f64> =
+        emitting.iter().map(|(_, l, a)| *a as f64 * (0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2]) as f64).collect();
+    let total: f64 = power.iter().sum();
+    let mut acc = 0.0;
+    let mut emitters: Vec<Emitter> = emitting
+        .iter()
+        .zip(&power)
+        .map(|(&(tri, radiance, area), &w)| {
+            acc += w;
+            Emitter { radiance, tri, cdf: (acc / total) as f32, pick: (w / total) as f32, area, pad: 0 }
+        })
+        .collect();
+    if let Some(last) = emitters.last_mut() {
+        last.cdf = 1.0;
+    }
+    let (nodes, order) = build_bvh(&tris);
+    let tris: Vec<Tri> = order.iter().map(|&i| tris[i as usize]).collect();
+    let normals: Vec<[f32; 4]> =
+        order.iter().flat_map(|&i| normals[3 * i as usize..3 * i as usize + 3].to_vec()).collect();
+    for e in &mut emitters {
+        e.tri = order.iter().position(|&i| i == e.tri).expect("every triangle is in the BVH") as u32;
+    }
+    let v = |x: Vec3| [x.x, x.y, x.z, 0.0];
+    let axis = |d: Vec3| v(cam.to_world.vector(d));
+    let params = Params {
+        cam_pos: v(cam.position),
+        cam_x: axis(vec3(1.0, 0.0, 0.0)),
+        cam_y: axis(vec3(0.0, 1.0, 0.0)),
+        cam_z: axis(vec3(0.0, 0.0, 1.0)),
+        tan_half: [cam.tan_half.x, cam.tan_half.y],
+        near_clip: cam.near_clip,
+        eps_scale: 1e-4,
+        width: s.width as u32,
+        height: s.height as u32,
+        max_depth: s.max_depth,
+        rr_depth: s.rr_depth as i32,
+        emitters: emitters.len() as u32,
+        ..Params::default()
+    };
+    Ok(Flat { nodes, tris, normals, materials, emitters, params })
+}
+
+/// A binary BVH over `tris` by median splits along the longest axis of the centroids' box
+/// (leaves of at most 4 triangles), flattened depth-first: a node's left child follows it,
+/// and `miss` is the node after its subtree. Returns the nodes and the triangle order.
+fn build_bvh(tris: &[Tri]) -> (Vec<Node>, Vec<u32>) {
+    let centroid = |t: &Tri| [0, 1, 2].map(|k| (t.v0[k] + t.v1[k] + t.v2[k]) / 3.0);
+    let mut order: Vec<u32> = (0..tris.len() as u32).collect();
+    let mut nodes = Vec::new();
+    fn bounds(tris: &[Tri], ids: &[u32]) -> ([f32; 3], [f32; 3]) {
+        let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+        for &i in ids {
+            let t = &tris[i as usize];
+            for v in [t.v0, t.v1, t.v2] {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(v[k]);
+                    hi[k] = hi[k].max(v[k]);
+                }
+            }
+        }
+        (lo, hi)
+    }
+    fn build(tris: &[Tri], ids: &mut [u32], first: u32, nodes: &mut Vec<Node>, centroid: &dyn Fn(&Tri) -> [f32; 3]) {
+        let (lo, hi) = bounds(tris, ids);
+        let me = nodes.len();
+        nodes.push(Node { lo, hi, first: 0, count: 0, miss: NONE, pad: [0; 3] });
+        if ids.len() <= 4 {
+            nodes[me].first = first;
+            nodes[me].count = ids.len() as u32;
+            return;
+        }
+        let (mut clo, mut chi) = ([f32::MAX; 3], [f32::MIN; 3]);
+        for &i in ids.iter() {
+            let c = centroid(&tris[i as usize]);
+            for k in 0..3 {
+                clo[k] = clo[k].min(c[k]);
+                chi[k] = chi[k].max(c[k]);
+            }
+        }
+        let axis = (0..3).max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b]))).unwrap_or(0);
+        let mid = ids.len() / 2;
+        ids.select_nth_unstable_by(mid, |&a, &b| {
+            centroid(&tris[a as usize])[axis].total_cmp(&centroid(&tris[b as usize])[axis])
+        });
+        let (left, right) = ids.split_at_mut(mid);
+        build(tris, left, first, nodes, centroid);
+        // The left subtree's nodes that end it (its root and the last node of every right
+        // spine) continue with the right child; the right subtree's keep NONE until an
+        // ancestor links them (the whole tree's end stays NONE).
+        let right_start = nodes.len();
+        link(nodes, me + 1, right_start as u32);
+        build(tris, right, first + mid as u32, nodes, centroid);
+    }
+    /// Sets the miss link of the subtree rooted at `root` to `next`: the root's, and that
+    /// of every node whose miss pointed past the subtree (NONE while building).
+    fn link(nodes: &mut [Node], root: usize, next: u32) {
+        let end = nodes.len();
+        for n in &mut nodes[root..end] {
+            if n.miss == NONE {
+                n.miss = next;
+            }
+        }
+    }
+    build(tris, &mut order, 0, &mut nodes, &centroid);
+    (nodes, order)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Stackless traversal visits every leaf once, in depth-first order.
+    #[test]
+    fn miss_links_walk_every_leaf_once() {
+        let tris: Vec<Tri> = (0..37)
+            .map(|i| {
+                let x = (i * 7 % 13) as f32;
+                let y = (i * 5 % 11) as f32;
+                Tri {
+                    v0: [x, y, 0.0],
+                    v1: [x + 1.0, y, 0.0],
+                    v2: [x, y + 1.0, 0.0],
+                    material: 0,
+                    emitter: NONE,
+                    flags: 0,
+                }
+            })
+            .collect();
+        let (nodes, order) = build_bvh(&tris);
+        let mut seen = vec![0; tris.len()];
+        let mut i = 0u32;
+        while i != NONE {
+            let n = nodes[i as usize];
+            if n.count > 0 {
+                for k in n.first..n.first + n.count {
+                    seen[order[k as usize] as usize] += 1;
+                }
+                i = n.miss;
+            } else {
+                i += 1;
+            }
+        }
+        assert!(seen.iter().all(|&c| c == 1), "{seen:?}");
+        assert_eq!(nodes[0].miss, NONE);
+    }
+}

@@ -1,0 +1,104 @@
+//! The GPU path tracer against Mitsuba 3's references, on whatever Vulkan adapter there is:
+//! lavapipe in CI (scripts/test.sh installs it), slowly but exactly. Without an adapter the
+//! tests say so and pass, unless SKELIGHT_REQUIRE_GPU=1 (set by scripts/test.sh when it has
+//! Vulkan), so that a machine without one does not fail the suite by accident.
+
+#[path = "../../skelight/tests/common/mod.rs"]
+mod common;
+
+use common::{compare, reference_noise, shared_dir, T_LIMIT, Z_LIMIT};
+use skelight::film::Film;
+use skelight::imageio::Image;
+use skelight::scene::load::load;
+use skelight::scene::Scene;
+use skelight_gpu::{GpuError, GpuPt};
+
+/// Opens the GPU for `scene`, or `None` (with a note) when the machine has no adapter and
+/// none is required.
+fn open(scene: &Scene) -> Result<Option<GpuPt>, GpuError> {
+    match GpuPt::new(scene) {
+        Err(GpuError::NoAdapter(why)) if std::env::var("SKELIGHT_REQUIRE_GPU").as_deref() != Ok("1") => {
+            println!("no Vulkan adapter ({why}): GPU tests skipped");
+            Ok(None)
+        }
+        other => other.map(Some),
+    }
+}
+
+fn render(gpu: &mut GpuPt, scene: &Scene, spp: u32, seed: u64) -> Film {
+    let mut film = Film::new(scene.settings.width, scene.settings.height, scene.settings.filter);
+    gpu.render_into(&mut film, seed, 0, spp, |_| {}).expect("GPU render");
+    film
+}
+
+const SPP: u32 = 64;
+
+#[test]
+fn gpu_pt_matches_mitsuba_on_the_conformance_scenes_it_renders() {
+    let dir = shared_dir().join("conformance");
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("refs/manifest.json")).unwrap()).unwrap();
+    let (mut tested, mut refused, mut failures) = (Vec::new(), Vec::new(), Vec::new());
+    for (name, entry) in manifest.as_object().expect("manifest: an object of scenes") {
+        let scene = load(&dir.join("scenes").join(format!("{name}.xml")), &[]).unwrap();
+        let mut gpu = match open(&scene) {
+            Ok(Some(g)) => g,
+            Ok(None) => return,
+            Err(GpuError::Unsupported(why)) => {
+                refused.push(format!("{name}: {}", why.split(';').next().unwrap_or_default()));
+                continue;
+            }
+            Err(e) => panic!("{name}: {e}"),
+        };
+        let mean: Vec<f64> = entry["mean"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        let ref_mean = [mean[0], mean[1], mean[2]];
+        let ref_spp = entry["spp"].as_u64().unwrap() as u32;
+        let reference = Image::load(&dir.join("refs").join(format!("{name}.exr"))).unwrap();
+        let noise = reference_noise(&scene, 16, ref_spp);
+        let mut judge = |spp: u32, seeds: (u64, u64)| {
+            let (a, b) = (render(&mut gpu, &scene, spp, seeds.0), render(&mut gpu, &scene, spp, seeds.1));
+            let c = compare(&a, &b, &reference, &noise, ref_mean);
+            let ok = c.t < T_LIMIT && c.z.iter().all(|z| *z < Z_LIMIT);
+            (c, ok)
+        };
+        // As the CPU conformance test: a second look at 4× the samples before a failure.
+        let (mut c, mut ok) = judge(SPP, (11, 12));
+        if !ok {
+            (c, ok) = judge(4 * SPP, (13, 14));
+        }
+        println!(
+            "gpu pt {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (ref {:.4} {:.4} {:.4}) {}  [{}]",
+            c.t, c.z[0], c.z[1], c.z[2], c.mean[0], c.mean[1], c.mean[2], ref_mean[0], ref_mean[1], ref_mean[2],
+            if ok { "ok" } else { "FAIL" },
+            gpu.adapter
+        );
+        tested.push(name.clone());
+        if !ok {
+            failures.push(format!("{name}: T = {:.2}, z = {:?}", c.t, c.z));
+        }
+    }
+    println!("refused (outside the GPU's feature subset):\n  {}", refused.join("\n  "));
+    assert!(failures.is_empty(), "GPU pt disagrees with Mitsuba 3 on:\n{}", failures.join("\n"));
+    assert!(tested.iter().any(|n| n.starts_with("c01")), "c01 must be inside the GPU's subset; tested {tested:?}");
+}
+
+/// A scene outside the subset is refused, naming what is outside it (never a silently
+/// different image).
+#[test]
+fn scenes_outside_the_subset_are_refused_by_name() {
+    let dir = shared_dir().join("conformance/scenes");
+    for (scene, what) in [
+        ("c07_roughconductor.xml", "roughconductor"),
+        ("c02_point.xml", "other than an area light"),
+        ("c14_thinlens.xml", "thin lens"),
+        ("c15_tent_filter.xml", "filter"),
+    ] {
+        let s = load(&dir.join(scene), &[]).unwrap();
+        match GpuPt::new(&s) {
+            Err(GpuError::Unsupported(why)) => assert!(why.contains(what), "{scene}: {why}"),
+            Err(GpuError::NoAdapter(_)) => {}
+            Err(e) => panic!("{scene}: {e}"),
+            Ok(_) => panic!("{scene} should be refused"),
+        }
+    }
+}
