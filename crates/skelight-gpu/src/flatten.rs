@@ -5,6 +5,7 @@
 //! image.
 
 use bytemuck::{Pod, Zeroable};
+use skelight::color::Rgb;
 use skelight::film::Filter;
 use skelight::light::Light;
 use skelight::material::Bsdf;
@@ -170,7 +171,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         .collect::<Result<Vec<_>, _>>()?;
     let mut tris = Vec::new();
     let mut normals = Vec::new();
-    let mut emitting: Vec<(u32, [f32; 3], f32)> = Vec::new();
+    let mut emitting: Vec<(u32, Rgb, f32)> = Vec::new();
     for mesh in &scene.meshes {
         if mesh.alpha.is_some() {
             return Err(unsupported(format!("mesh '{}' has an alpha mask", mesh.name)));
@@ -184,7 +185,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
             let mut emitter = NONE;
             if let Some(l) = mesh.emission.filter(|l| l.max_component() > 0.0 && area > 0.0) {
                 emitter = emitting.len() as u32;
-                emitting.push((tris.len() as u32, [l.r, l.g, l.b], area));
+                emitting.push((tris.len() as u32, l, area));
             }
             let p = |v: Vec3| [v.x, v.y, v.z];
             let smooth = !mesh.normals.is_empty();
@@ -199,8 +200,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         return Err(GpuError::Unsupported("the scene has no triangles".into()));
     }
     // Emitting triangles by power (area × luminance of their radiance).
-    let power: Vec<f64> =
-        emitting.iter().map(|(_, l, a)| *a as f64 * (0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2]) as f64).collect();
+    let power: Vec<f64> = emitting.iter().map(|(_, l, a)| *a as f64 * l.luminance() as f64).collect();
     let total: f64 = power.iter().sum();
     let mut acc = 0.0;
     let mut emitters: Vec<Emitter> = emitting
@@ -208,6 +208,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         .zip(&power)
         .map(|(&(tri, radiance, area), &w)| {
             acc += w;
+            let radiance = [radiance.r, radiance.g, radiance.b];
             Emitter { radiance, tri, cdf: (acc / total) as f32, pick: (w / total) as f32, area, pad: 0 }
         })
         .collect();
@@ -218,8 +219,14 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     let tris: Vec<Tri> = order.iter().map(|&i| tris[i as usize]).collect();
     let normals: Vec<[f32; 4]> =
         order.iter().flat_map(|&i| normals[3 * i as usize..3 * i as usize + 3].to_vec()).collect();
+    // Where each triangle went in the BVH's order (an inverse permutation, not a search per
+    // emitter: scenes with many emitting triangles would take quadratic time).
+    let mut position = vec![0u32; order.len()];
+    for (at, &i) in order.iter().enumerate() {
+        position[i as usize] = at as u32;
+    }
     for e in &mut emitters {
-        e.tri = order.iter().position(|&i| i == e.tri).expect("every triangle is in the BVH") as u32;
+        e.tri = position[e.tri as usize];
     }
     let v = |x: Vec3| [x.x, x.y, x.z, 0.0];
     let axis = |d: Vec3| v(cam.to_world.vector(d));

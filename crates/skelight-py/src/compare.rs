@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use numpy::ndarray::{Array1, Array3};
+use numpy::ndarray::Array1;
 use numpy::{IntoPyArray, PyReadonlyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -70,9 +70,7 @@ pub fn compare<'py>(
         d.set_item("mae", column(&|p| p.metrics.mae).into_pyarray(py))?;
         d.set_item("rmse", column(&|p| p.metrics.rmse).into_pyarray(py))?;
         d.set_item("relmse", column(&|p| p.metrics.relmse).into_pyarray(py))?;
-        let data: Vec<f32> = s.image.pixels.iter().flat_map(|p| p.to_array()).collect();
-        let image = Array3::from_shape_vec((s.image.height, s.image.width, 3), data).map_err(error)?;
-        d.set_item("image", image.into_pyarray(py))?;
+        d.set_item("image", crate::render::array(py, &s.image))?;
         d.set_item("preparation", s.preparation)?;
         out.set_item(s.name, d)?;
     }

@@ -29,7 +29,7 @@ pub struct Render {
     preparation_seconds: f64,
 }
 
-fn array<'py>(py: Python<'py>, img: &Image) -> Bound<'py, PyArray3<f32>> {
+pub(crate) fn array<'py>(py: Python<'py>, img: &Image) -> Bound<'py, PyArray3<f32>> {
     let data: Vec<f32> = img.pixels.iter().flat_map(|p| p.to_array()).collect();
     Array3::from_shape_vec((img.height, img.width, 3), data).expect("pixels × 3 values").into_pyarray(py)
 }
