@@ -1,5 +1,5 @@
-//! `render --device gpu`: path tracing on the GPU (crates/skelight-gpu), written like a CPU
-//! render (same EXR with its sample count, so `merge` combines GPU and CPU renders).
+//! `render --device gpu`: `pt` or `ibpt` on the GPU (crates/skelight-gpu), written like a
+//! CPU render (same EXR with its sample count, so `merge` combines GPU and CPU renders).
 
 use anyhow::{bail, Result};
 
@@ -8,8 +8,12 @@ use crate::render_cmd::RenderArgs;
 #[cfg(feature = "gpu")]
 pub(crate) fn render(args: &RenderArgs) -> Result<()> {
     use anyhow::Context;
-    if skelight::integrator::registry::find(&args.integrator)?.name != "pt" || !args.params.is_empty() {
-        bail!("--device gpu renders --integrator pt (without parameters) for now; ibpt on the GPU is not built yet");
+    let name = skelight::integrator::registry::find(&args.integrator)?.name;
+    let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
+        bail!("--device gpu renders --integrator pt or ibpt, not {name}");
+    };
+    if !args.params.is_empty() {
+        bail!("--device gpu takes no estimator parameters (pt and ibpt have none on the GPU)");
     }
     if args.time.is_some() || args.shard.is_some() || args.debug_skeleton.is_some() {
         bail!("--device gpu takes --spp (no --time, --shard or --debug-… yet)");
@@ -20,8 +24,8 @@ pub(crate) fn render(args: &RenderArgs) -> Result<()> {
     if spp == 0 {
         bail!("--spp must be at least 1");
     }
-    let mut gpu = skelight_gpu::GpuPt::new(&scene)?;
-    eprintln!("GPU: {}", gpu.adapter);
+    let mut gpu = skelight_gpu::GpuRenderer::new(&scene, estimator)?;
+    eprintln!("GPU {}: {}", estimator.name(), gpu.adapter);
     let start = std::time::Instant::now();
     let mut film = skelight::film::Film::new(scene.settings.width, scene.settings.height, scene.settings.filter);
     gpu.render_into(&mut film, args.seed, 0, spp, |done| {

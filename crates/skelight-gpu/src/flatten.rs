@@ -59,7 +59,7 @@ pub struct Emitter {
     pub pad: u32,
 }
 
-/// The kernel's uniform block (`Params` in the WGSL), 128 bytes.
+/// The kernels' uniform block (`Params` in common.wgsl), 192 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
 pub struct Params {
@@ -67,6 +67,10 @@ pub struct Params {
     pub cam_x: [f32; 4],
     pub cam_y: [f32; 4],
     pub cam_z: [f32; 4],
+    pub inv_x: [f32; 4],
+    pub inv_y: [f32; 4],
+    pub inv_z: [f32; 4],
+    pub forward: [f32; 4],
     pub tan_half: [f32; 2],
     pub near_clip: f32,
     pub eps_scale: f32,
@@ -81,7 +85,7 @@ pub struct Params {
     pub emitters: u32,
     pub x0: u32,
     pub y0: u32,
-    pub pad: u32,
+    pub bidirectional: u32,
 }
 
 /// Everything the kernels read of a scene.
@@ -230,11 +234,17 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     }
     let v = |x: Vec3| [x.x, x.y, x.z, 0.0];
     let axis = |d: Vec3| v(cam.to_world.vector(d));
+    let to_local = cam.to_world.inverse();
+    let local = |d: Vec3| v(to_local.vector(d));
     let params = Params {
         cam_pos: v(cam.position),
         cam_x: axis(vec3(1.0, 0.0, 0.0)),
         cam_y: axis(vec3(0.0, 1.0, 0.0)),
         cam_z: axis(vec3(0.0, 0.0, 1.0)),
+        inv_x: local(vec3(1.0, 0.0, 0.0)),
+        inv_y: local(vec3(0.0, 1.0, 0.0)),
+        inv_z: local(vec3(0.0, 0.0, 1.0)),
+        forward: v(cam.forward),
         tan_half: [cam.tan_half.x, cam.tan_half.y],
         near_clip: cam.near_clip,
         eps_scale: 1e-4,

@@ -2,11 +2,12 @@
 //! ([`flatten`]), traversing their own BVH (data-centre GPUs have no ray-tracing cores, nor
 //! does lavapipe, on which the tests run).
 //!
-//! Today: path tracing (`pt`, the same estimator as the CPU's) over the feature subset
-//! [`flatten::FEATURES`]; a scene outside it is refused. Random numbers are drawn per
-//! (seed, pixel, sample index), so GPU renders agree with the CPU's in expectation and merge
-//! with them sample-count-weighted. Not yet: instant BPT's light-tracing pass, the other
-//! BSDFs, lights and the thin lens (issue 35).
+//! Estimators ([`Estimator`]): path tracing (`pt`, the CPU's estimator) and instant BPT
+//! (`ibpt`, seed 002: a camera pass and a light pass whose splats land on the film with
+//! atomic adds, MIS with one float per path), over the feature subset [`flatten::FEATURES`];
+//! a scene outside it is refused. Random numbers are drawn per (seed, pixel, sample index),
+//! so GPU renders agree with the CPU's in expectation and merge with them. Not yet: the
+//! other BSDFs, lights and the thin lens (issue 35).
 
 pub mod flatten;
 
@@ -36,16 +37,46 @@ const SAMPLES_PER_DISPATCH: u32 = 16;
 /// Pixels along a tile's side: any resolution fits any device's dispatch limits.
 const TILE: u32 = 512;
 
-/// A GPU path tracer bound to one scene.
-pub struct GpuPt {
+/// What the GPU renders with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Estimator {
+    /// Path tracing with next-event estimation (the CPU's `pt`).
+    Pt,
+    /// Instant BPT (the CPU's `ibpt`): path tracing and light tracing, one light path per
+    /// camera sample, weighted by the power heuristic.
+    Ibpt,
+}
+
+impl Estimator {
+    /// The estimator of registry name `name`, if the GPU has it.
+    pub fn from_name(name: &str) -> Option<Estimator> {
+        match name {
+            "pt" => Some(Estimator::Pt),
+            "ibpt" => Some(Estimator::Ibpt),
+            _ => None,
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Estimator::Pt => "pt",
+            Estimator::Ibpt => "ibpt",
+        }
+    }
+}
+
+/// A GPU renderer bound to one scene and estimator.
+pub struct GpuRenderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipeline: wgpu::ComputePipeline,
+    camera_pass: wgpu::ComputePipeline,
+    light_pass: wgpu::ComputePipeline,
+    estimator: Estimator,
     bind_group: wgpu::BindGroup,
     params: Params,
     params_buffer: wgpu::Buffer,
     sums: wgpu::Buffer,
     squares: wgpu::Buffer,
+    splats: wgpu::Buffer,
     readback: wgpu::Buffer,
     pixels: usize,
     /// The adapter, in words (name, driver, type).
@@ -62,15 +93,16 @@ fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     })
 }
 
-impl GpuPt {
+impl GpuRenderer {
     /// Flattens `scene` (refusing what the GPU cannot render) and opens the first Vulkan
     /// adapter: a real GPU when there is one, else lavapipe.
-    pub fn new(scene: &Scene) -> Result<GpuPt, GpuError> {
+    pub fn new(scene: &Scene, estimator: Estimator) -> Result<GpuRenderer, GpuError> {
         let flat = flatten::flatten(scene)?;
-        pollster::block_on(GpuPt::open(flat))
+        pollster::block_on(GpuRenderer::open(flat, estimator))
     }
 
-    async fn open(flat: Flat) -> Result<GpuPt, GpuError> {
+    async fn open(mut flat: Flat, estimator: Estimator) -> Result<GpuRenderer, GpuError> {
+        flat.params.bidirectional = (estimator == Estimator::Ibpt) as u32;
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
         desc.backends = wgpu::Backends::VULKAN;
         let instance = wgpu::Instance::new(desc);
@@ -96,18 +128,50 @@ impl GpuPt {
             })
             .await
             .map_err(|e| GpuError::Device(e.to_string()))?;
+        let source = [include_str!("common.wgsl"), include_str!("camera_pass.wgsl"), include_str!("light_pass.wgsl")];
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("pt.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("pt.wgsl").into()),
+            label: Some("skelight kernels"),
+            source: wgpu::ShaderSource::Wgsl(source.concat().into()),
         });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("pt"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
+        // One layout for both passes (each uses part of it).
+        let binding = |i: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding: i,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let read = wgpu::BufferBindingType::Storage { read_only: true };
+        let write = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("scene"),
+            entries: &[
+                binding(0, wgpu::BufferBindingType::Uniform),
+                binding(1, read),
+                binding(2, read),
+                binding(3, read),
+                binding(4, read),
+                binding(5, write),
+                binding(6, write),
+                binding(7, read),
+                binding(8, write),
+            ],
         });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("scene"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let (camera_pass, light_pass) = (pipeline("camera_main"), pipeline("light_main"));
         let pixels = (flat.params.width * flat.params.height) as usize;
         let params_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
@@ -125,9 +189,15 @@ impl GpuPt {
         };
         let sums = accumulator("sums");
         let squares = accumulator("squares");
+        let splats = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("splats"),
+            size: (pixels * 12) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            size: (pixels * 32) as u64,
+            size: (pixels * 44) as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -136,27 +206,29 @@ impl GpuPt {
         let materials = storage(&device, "materials", bytemuck::cast_slice(&flat.materials));
         let emitters = storage(&device, "emitters", bytemuck::cast_slice(&flat.emitters));
         let normals = storage(&device, "normals", bytemuck::cast_slice(&flat.normals));
-        let layout = pipeline.get_bind_group_layout(0);
         let entries: Vec<wgpu::BindGroupEntry> =
-            [&params_buffer, &nodes, &tris, &materials, &emitters, &sums, &squares, &normals]
+            [&params_buffer, &nodes, &tris, &materials, &emitters, &sums, &squares, &normals, &splats]
                 .iter()
                 .enumerate()
                 .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
                 .collect();
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("pt"),
+            label: Some("scene"),
             layout: &layout,
             entries: &entries,
         });
-        Ok(GpuPt {
+        Ok(GpuRenderer {
             device,
             queue,
-            pipeline,
+            camera_pass,
+            light_pass,
+            estimator,
             bind_group,
             params: flat.params,
             params_buffer,
             sums,
             squares,
+            splats,
             readback,
             pixels,
             adapter: name,
@@ -185,6 +257,7 @@ impl GpuPt {
             let mut encoder = self.device.create_command_encoder(&Default::default());
             encoder.clear_buffer(&self.sums, 0, None);
             encoder.clear_buffer(&self.squares, 0, None);
+            encoder.clear_buffer(&self.splats, 0, None);
             self.queue.submit([encoder.finish()]);
             for y0 in (0..h).step_by(TILE as usize) {
                 for x0 in (0..w).step_by(TILE as usize) {
@@ -193,27 +266,32 @@ impl GpuPt {
                     let mut encoder = self.device.create_command_encoder(&Default::default());
                     {
                         let mut pass = encoder.begin_compute_pass(&Default::default());
-                        pass.set_pipeline(&self.pipeline);
                         pass.set_bind_group(0, &self.bind_group, &[]);
                         let (tw, th) = (TILE.min(w - x0), TILE.min(h - y0));
+                        pass.set_pipeline(&self.camera_pass);
                         pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
+                        if self.estimator == Estimator::Ibpt {
+                            pass.set_pipeline(&self.light_pass);
+                            pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
+                        }
                     }
                     self.queue.submit([encoder.finish()]);
                 }
             }
-            self.read_into(film)?;
+            self.read_into(film, n)?;
             done += n;
             on_batch(done);
         }
         Ok(())
     }
 
-    /// Adds the accumulators to `film` in f64.
-    fn read_into(&self, film: &mut Film) -> Result<(), GpuError> {
+    /// Adds the accumulators of a batch of `spp` samples per pixel to `film` in f64.
+    fn read_into(&self, film: &mut Film, spp: u32) -> Result<(), GpuError> {
         let bytes = (self.pixels * 16) as u64;
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&self.sums, 0, &self.readback, 0, bytes);
         encoder.copy_buffer_to_buffer(&self.squares, 0, &self.readback, bytes, bytes);
+        encoder.copy_buffer_to_buffer(&self.splats, 0, &self.readback, 2 * bytes, (self.pixels * 12) as u64);
         self.queue.submit([encoder.finish()]);
         let slice = self.readback.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -227,13 +305,21 @@ impl GpuPt {
         {
             let data = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
             let values: &[f32] = bytemuck::cast_slice(&data);
-            let (sums, squares) = values.split_at(self.pixels * 4);
+            let (sums, rest) = values.split_at(self.pixels * 4);
+            let (squares, splats) = rest.split_at(self.pixels * 4);
+            let f = |a: &[f32]| [a[0] as f64, a[1] as f64, a[2] as f64];
             for i in 0..self.pixels {
                 let s = &sums[i * 4..i * 4 + 4];
                 let q = &squares[i * 4..i * 4 + 4];
-                let f = |a: &[f32]| [a[0] as f64, a[1] as f64, a[2] as f64];
                 film.add_box_samples(i, f(s), f(q), s[3] as f64);
                 film.rejected += q[3] as u64;
+            }
+            if self.estimator == Estimator::Ibpt {
+                for i in 0..self.pixels {
+                    film.add_box_splats(i, f(&splats[i * 3..i * 3 + 3]));
+                }
+                // One light path per camera sample.
+                film.splat_paths += self.pixels as u64 * spp as u64;
             }
         }
         self.readback.unmap();

@@ -1,4 +1,5 @@
-//! The GPU path tracer against Mitsuba 3's references, on whatever Vulkan adapter there is:
+//! The GPU's estimators against Mitsuba 3's references and the CPU's, on whatever Vulkan
+//! adapter there is:
 //! lavapipe in CI (scripts/test.sh installs it), slowly but exactly. Without an adapter the
 //! tests say so and pass, unless SKELIGHT_REQUIRE_GPU=1 (set by scripts/test.sh when it has
 //! Vulkan), so that a machine without one does not fail the suite by accident.
@@ -6,17 +7,17 @@
 #[path = "../../skelight/tests/common/mod.rs"]
 mod common;
 
-use common::{compare, reference_noise, shared_dir, T_LIMIT, Z_LIMIT};
+use common::{compare, pair_block_t, pair_mean_se, reference_noise, render_spp, shared_dir, T_LIMIT, Z_LIMIT};
 use skelight::film::Film;
 use skelight::imageio::Image;
 use skelight::scene::load::load;
 use skelight::scene::Scene;
-use skelight_gpu::{GpuError, GpuPt};
+use skelight_gpu::{Estimator, GpuError, GpuRenderer};
 
 /// Opens the GPU for `scene`, or `None` (with a note) when the machine has no adapter and
 /// none is required.
-fn open(scene: &Scene) -> Result<Option<GpuPt>, GpuError> {
-    match GpuPt::new(scene) {
+fn open(scene: &Scene, estimator: Estimator) -> Result<Option<GpuRenderer>, GpuError> {
+    match GpuRenderer::new(scene, estimator) {
         Err(GpuError::NoAdapter(why)) if std::env::var("SKELIGHT_REQUIRE_GPU").as_deref() != Ok("1") => {
             println!("no Vulkan adapter ({why}): GPU tests skipped");
             Ok(None)
@@ -25,7 +26,7 @@ fn open(scene: &Scene) -> Result<Option<GpuPt>, GpuError> {
     }
 }
 
-fn render(gpu: &mut GpuPt, scene: &Scene, spp: u32, seed: u64) -> Film {
+fn render(gpu: &mut GpuRenderer, scene: &Scene, spp: u32, seed: u64) -> Film {
     let mut film = Film::new(scene.settings.width, scene.settings.height, scene.settings.filter);
     gpu.render_into(&mut film, seed, 0, spp, |_| {}).expect("GPU render");
     film
@@ -35,13 +36,23 @@ const SPP: u32 = 64;
 
 #[test]
 fn gpu_pt_matches_mitsuba_on_the_conformance_scenes_it_renders() {
+    matches_mitsuba(Estimator::Pt);
+}
+
+#[test]
+fn gpu_ibpt_matches_mitsuba_on_the_conformance_scenes_it_renders() {
+    matches_mitsuba(Estimator::Ibpt);
+}
+
+fn matches_mitsuba(estimator: Estimator) {
+    let label = estimator.name();
     let dir = shared_dir().join("conformance");
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("refs/manifest.json")).unwrap()).unwrap();
     let (mut tested, mut refused, mut failures) = (Vec::new(), Vec::new(), Vec::new());
     for (name, entry) in manifest.as_object().expect("manifest: an object of scenes") {
         let scene = load(&dir.join("scenes").join(format!("{name}.xml")), &[]).unwrap();
-        let mut gpu = match open(&scene) {
+        let mut gpu = match open(&scene, estimator) {
             Ok(Some(g)) => g,
             Ok(None) => return,
             Err(GpuError::Unsupported(why)) => {
@@ -67,7 +78,7 @@ fn gpu_pt_matches_mitsuba_on_the_conformance_scenes_it_renders() {
             (c, ok) = judge(4 * SPP, (13, 14));
         }
         println!(
-            "gpu pt {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (ref {:.4} {:.4} {:.4}) {}  [{}]",
+            "gpu {label:4} {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (ref {:.4} {:.4} {:.4}) {}  [{}]",
             c.t, c.z[0], c.z[1], c.z[2], c.mean[0], c.mean[1], c.mean[2], ref_mean[0], ref_mean[1], ref_mean[2],
             if ok { "ok" } else { "FAIL" },
             gpu.adapter
@@ -78,7 +89,7 @@ fn gpu_pt_matches_mitsuba_on_the_conformance_scenes_it_renders() {
         }
     }
     println!("refused (outside the GPU's feature subset):\n  {}", refused.join("\n  "));
-    assert!(failures.is_empty(), "GPU pt disagrees with Mitsuba 3 on:\n{}", failures.join("\n"));
+    assert!(failures.is_empty(), "GPU {label} disagrees with Mitsuba 3 on:\n{}", failures.join("\n"));
     assert!(tested.iter().any(|n| n.starts_with("c01")), "c01 must be inside the GPU's subset; tested {tested:?}");
 }
 
@@ -94,11 +105,42 @@ fn scenes_outside_the_subset_are_refused_by_name() {
         ("c15_tent_filter.xml", "filter"),
     ] {
         let s = load(&dir.join(scene), &[]).unwrap();
-        match GpuPt::new(&s) {
+        match GpuRenderer::new(&s, Estimator::Ibpt) {
             Err(GpuError::Unsupported(why)) => assert!(why.contains(what), "{scene}: {why}"),
             Err(GpuError::NoAdapter(_)) => {}
             Err(e) => panic!("{scene}: {e}"),
             Ok(_) => panic!("{scene} should be refused"),
         }
     }
+}
+
+/// GPU ibpt against the CPU's ibpt (same estimator, independent random numbers): two renders
+/// each, image means by z-test and 8×8 blocks by T, as the CPU's estimators are compared.
+fn gpu_and_cpu_ibpt_agree(scene: &Scene, gpu_spp: u32, cpu_spp: u32) {
+    let Some(mut gpu) = open(scene, Estimator::Ibpt).expect("inside the GPU's subset") else { return };
+    let (g1, g2) = (render(&mut gpu, scene, gpu_spp, 21).image(), render(&mut gpu, scene, gpu_spp, 22).image());
+    let mut cpu = skelight::integrator::registry::create("ibpt", &[]).unwrap();
+    let (c1, c2) =
+        (render_spp(scene, cpu.as_mut(), cpu_spp, 23).image(), render_spp(scene, cpu.as_mut(), cpu_spp, 24).image());
+    let ((mg, sg), (mc, sc)) = (pair_mean_se(&g1, &g2), pair_mean_se(&c1, &c2));
+    let t = pair_block_t(&g1, &g2, &c1, &c2);
+    println!("gpu vs cpu ibpt: mean {mg:.4?} ± {sg:.4?} vs {mc:.4?} ± {sc:.4?}, block T {t:.2} [{}]", gpu.adapter);
+    for c in 0..3 {
+        let z = (mg[c] - mc[c]).abs() / (sg[c] * sg[c] + sc[c] * sc[c]).sqrt();
+        assert!(
+            z < Z_LIMIT,
+            "channel {c}: GPU ibpt {} ± {} vs CPU ibpt {} ± {} (z {z:.2})",
+            mg[c],
+            sg[c],
+            mc[c],
+            sc[c]
+        );
+    }
+    assert!(t < T_LIMIT, "GPU ibpt vs CPU ibpt: block T = {t:.2}");
+}
+
+#[test]
+fn gpu_ibpt_matches_cpu_ibpt_on_the_cornell_box() {
+    let scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 64, 64);
+    gpu_and_cpu_ibpt_agree(&scene, 64, 64);
 }

@@ -410,6 +410,17 @@ impl Film {
         self.weight[i] += count;
     }
 
+    /// Adds light-tracing contributions gathered elsewhere (the GPU's light pass) to pixel
+    /// `i`, each having landed in its own pixel (box filter); `splat_paths` is the caller's
+    /// to count.
+    pub fn add_box_splats(&mut self, i: usize, sum: [f64; 3]) {
+        let (x, y) = (i % self.width, i / self.width);
+        let coverage = self.coverage[0][x] as f64 * self.coverage[1][y] as f64;
+        for (acc, s) in self.splat[i].iter_mut().zip(sum) {
+            *acc += s / coverage;
+        }
+    }
+
     /// Adds `other`'s samples and splats to this film (a shard to the merge of the others):
     /// the sums add, so the merge of a render's shards is that render, up to the order in
     /// which the f64 sums were added.

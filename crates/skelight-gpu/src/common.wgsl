@@ -1,14 +1,19 @@
-// Path tracing on the GPU: one thread per pixel, `samples` samples per dispatch, the same
-// estimator as the CPU's `pt` (next-event estimation, power-heuristic MIS on emitter hits,
-// Russian roulette from rr_depth, Mitsuba's max_depth counting segments) over the feature
-// subset `flatten.rs` accepts. The BVH is binary, flattened depth-first with a miss link per
-// node, traversed without a stack.
+// What both passes share: the scene's buffers, random numbers, BVH traversal, sampling and
+// the diffuse BSDF. The kernels (camera_pass.wgsl, light_pass.wgsl) are appended to this file
+// into one module. The BVH is binary, flattened depth-first with a miss link per node,
+// traversed without a stack. Conventions follow the CPU: Mitsuba's max_depth counts
+// segments, the side a BSDF or emitter is seen from follows the shading normal, area
+// densities the geometric one.
 
 struct Params {
     cam_pos: vec4<f32>,
     cam_x: vec4<f32>,      // world images of the camera's local axes (to_world's columns)
     cam_y: vec4<f32>,
     cam_z: vec4<f32>,
+    inv_x: vec4<f32>,      // camera-local images of the world axes (world_to_local's columns)
+    inv_y: vec4<f32>,
+    inv_z: vec4<f32>,
+    forward: vec4<f32>,    // unit viewing direction
     tan_half: vec2<f32>,
     near_clip: f32,
     eps_scale: f32,        // self-intersection offset per unit of coordinate magnitude
@@ -23,7 +28,7 @@ struct Params {
     emitters: u32,
     x0: u32,               // the tile this dispatch covers
     y0: u32,
-    pad: u32,
+    bidirectional: u32,    // 1: instant BPT (the camera pass weighs against light tracing too)
 }
 
 struct Node {
@@ -68,25 +73,31 @@ struct Emitter {
 @group(0) @binding(5) var<storage, read_write> sums: array<vec4<f32>>;      // rgb, samples
 @group(0) @binding(6) var<storage, read_write> squares: array<vec4<f32>>;   // rgb², rejected
 @group(0) @binding(7) var<storage, read> normals: array<vec4<f32>>;         // 3 per triangle
+@group(0) @binding(8) var<storage, read_write> splats: array<atomic<u32>>;  // rgb per pixel, f32 bits
 
 const NONE: u32 = 0xffffffffu;
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.318309886183791;
 
-var<private> rng: u32;
+// Random numbers: a counter hashed with a per-sample key (counter-based, so no state
+// correlates neighbouring pixels or samples). `lowbias32` is Wellons's integer hash.
+var<private> rng_key: u32;
+var<private> rng_n: u32;
 
-fn hash(v: u32) -> u32 {
-    let s = v * 747796405u + 2891336453u;
-    let w = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
-    return (w >> 22u) ^ w;
+fn lowbias32(v: u32) -> u32 {
+    var x = v;
+    x = x ^ (x >> 16u);
+    x = x * 0x7feb352du;
+    x = x ^ (x >> 15u);
+    x = x * 0x846ca68bu;
+    x = x ^ (x >> 16u);
+    return x;
 }
 
 // Uniform in [0, 1), 24 bits, as the CPU's next_f32.
 fn rnd() -> f32 {
-    rng = rng * 747796405u + 2891336453u;
-    let s = rng;
-    let w = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
-    return f32(((w >> 22u) ^ w) >> 8u) * (1.0 / 16777216.0);
+    rng_n = rng_n + 1u;
+    return f32(lowbias32(rng_key + lowbias32(rng_n)) >> 8u) * (1.0 / 16777216.0);
 }
 
 struct Hit {
@@ -216,134 +227,97 @@ fn pick_emitter(u: f32) -> u32 {
     return lo;
 }
 
-fn radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
-    rng = hash(P.seed_lo ^ hash(P.seed_hi ^ hash((py * P.width + px) ^ hash(sample))));
-    let pos = vec2<f32>(f32(px) + rnd(), f32(py) + rnd());
-    let local = vec3<f32>((1.0 - 2.0 * pos.x / f32(P.width)) * P.tan_half.x,
-                          (1.0 - 2.0 * pos.y / f32(P.height)) * P.tan_half.y, 1.0);
-    let to_world = mat3x3<f32>(P.cam_x.xyz, P.cam_y.xyz, P.cam_z.xyz);
-    var o = P.cam_pos.xyz + to_world * (local * P.near_clip);
-    var d = normalize(to_world * local);
-    var l = vec3<f32>(0.0);
-    var beta = vec3<f32>(1.0);
-    var prev_pdf = 0.0;          // 0: the camera (no MIS on what it sees)
-    var depth = 0;
-    loop {
-        let h = intersect(o, d, 3.0e38, false);
-        if (h.tri == NONE) {
-            break;
-        }
-        depth = depth + 1;
-        let tri = tris[h.tri];
-        let p = o + d * h.t;
-        let ng = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
-        let ns = shading_normal(h.tri, tri, ng, h.b);
-        // Emission and the BSDF's side follow the shading normal, the light's density
-        // the geometric one, as on the CPU.
-        let cos_o = -dot(ns, d);
-        if (tri.emitter != NONE && cos_o > 0.0) {
-            let e = emitters[tri.emitter];
-            var w = 1.0;
-            if (prev_pdf > 0.0) {
-                w = power(prev_pdf, e.pick / e.area * h.t * h.t / abs(dot(ng, d)));
-            }
-            l = l + beta * e.radiance * w;
-        }
-        if (P.max_depth >= 0 && depth >= P.max_depth) {
-            break;
-        }
-        let m = materials[tri.material];
-        var n = ns;
-        if (cos_o <= 0.0) {
-            if ((m.flags & 1u) == 0u) {
-                break;   // the back of a one-sided BSDF is black
-            }
-            n = -ns;
-        }
-        let f = m.reflectance * INV_PI;
-        // Next-event estimation: a triangle by power, a point uniformly on it.
-        if (P.emitters > 0u) {
-            let e = emitters[pick_emitter(rnd())];
-            let et = tris[e.tri];
-            var u = vec2<f32>(rnd(), rnd());
-            if (u.x + u.y > 1.0) {
-                u = vec2<f32>(1.0 - u.x, 1.0 - u.y);
-            }
-            let q = et.v0 + (et.v1 - et.v0) * u.x + (et.v2 - et.v0) * u.y;
-            let eg = normalize(cross(et.v1 - et.v0, et.v2 - et.v0));
-            let es = shading_normal(e.tri, et, eg, u);
-            let to = q - p;
-            let dist2 = dot(to, to);
-            let dist = sqrt(dist2);
-            let wi = to / dist;
-            let cos_l = abs(dot(eg, wi));
-            let cos_s = dot(n, wi);
-            if (dot(es, wi) < 0.0 && cos_l > 0.0 && cos_s > 0.0) {
-                // Aimed at q from the offset origin itself (as the CPU's spawn_ray_to): the
-                // offset would otherwise shift the ray beside q, into a small emitter's
-                // own triangles at grazing angles.
-                let po = spawn(p, ng, wi);
-                let shadow_dist = distance(q, po);
-                let shadow = intersect(po, (q - po) / shadow_dist, shadow_dist * (1.0 - 1e-4), true);
-                if (shadow.tri == NONE) {
-                    let pdf_light = e.pick / e.area * dist2 / cos_l;
-                    let pdf_bsdf = cos_s * INV_PI;
-                    l = l + beta * f * cos_s * e.radiance * (power(pdf_light, pdf_bsdf) / pdf_light);
-                }
-            }
-        }
-        // Continue along a cosine-distributed direction: f·cos/p = reflectance.
-        let local_wo = cosine_hemisphere(vec2<f32>(rnd(), rnd()));
-        if (local_wo.z <= 0.0) {
-            break;
-        }
-        let wo = frame(n) * local_wo;
-        beta = beta * m.reflectance;
-        if (max(beta.x, max(beta.y, beta.z)) <= 0.0) {
-            break;
-        }
-        prev_pdf = local_wo.z * INV_PI;
-        o = spawn(p, ng, wo);
-        d = wo;
-        if (depth >= P.rr_depth) {
-            let q = min(max(beta.x, max(beta.y, beta.z)), 0.95);
-            if (rnd() >= q) {
-                break;
-            }
-            beta = beta / q;
-        }
-        if (depth > 4096) {
-            break;
-        }
-    }
-    return l;
-}
-
 // By the bits: compilers may assume floats are never NaN.
 fn finite(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
 }
 
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let px = P.x0 + id.x;
-    let py = P.y0 + id.y;
-    if (px >= P.width || py >= P.height) {
-        return;
+
+fn sq(x: f32) -> f32 {
+    return x * x;
+}
+
+// Densities through a specular lobe are recorded as 0 and count as 1 in MIS ratios: they
+// appear in every strategy that can make the path, so they cancel (as the CPU's mis.rs).
+fn remap(pdf: f32) -> f32 {
+    return select(pdf, 1.0, pdf == 0.0);
+}
+
+// The generator of one sample of one pixel: `stream` 0 for the camera pass, 1 for the light
+// pass, so that the two are independent and every (seed, pixel, sample) is reproducible.
+fn seed_rng(px: u32, py: u32, sample: u32, stream: u32) {
+    let pixel = py * P.width + px;
+    rng_key = lowbias32(P.seed_lo ^ lowbias32(P.seed_hi ^ lowbias32(pixel ^ lowbias32(sample * 2u + stream))));
+    rng_n = 0u;
+}
+
+fn film_area() -> f32 {
+    return 4.0 * P.tan_half.x * P.tan_half.y;
+}
+
+// A point on an emitting triangle, chosen by power then uniformly by area.
+struct LightPoint {
+    e: Emitter,
+    q: vec3<f32>,
+    ng: vec3<f32>,         // geometric normal
+    ns: vec3<f32>,         // shading normal: the side that emits
+}
+
+fn sample_light_point() -> LightPoint {
+    let e = emitters[pick_emitter(rnd())];
+    let t = tris[e.tri];
+    var u = vec2<f32>(rnd(), rnd());
+    if (u.x + u.y > 1.0) {
+        u = vec2<f32>(1.0 - u.x, 1.0 - u.y);
     }
-    let i = py * P.width + px;
-    var sum = sums[i];
-    var sq = squares[i];
-    for (var s = 0u; s < P.samples; s = s + 1u) {
-        let l = radiance(px, py, P.first_sample + s);
-        // Non-finite samples are rejected and counted, as on the CPU.
-        if (finite(l.x) && finite(l.y) && finite(l.z)) {
-            sum = sum + vec4<f32>(l, 1.0);
-            sq = sq + vec4<f32>(l * l, 0.0);
-        } else {
-            sq.w = sq.w + 1.0;
-        }
-    }
-    sums[i] = sum;
-    squares[i] = sq;
+    let q = t.v0 + (t.v1 - t.v0) * u.x + (t.v2 - t.v0) * u.y;
+    let ng = normalize(cross(t.v1 - t.v0, t.v2 - t.v0));
+    return LightPoint(e, q, ng, shading_normal(e.tri, t, ng, u));
+}
+
+// Where a ray hit: the point, its normals, and the normal on the side it arrived from (the
+// shading normal, flipped for two-sided materials). `front` is false where a one-sided
+// material was hit from behind (black).
+struct Surface {
+    p: vec3<f32>,
+    ng: vec3<f32>,
+    ns: vec3<f32>,
+    n: vec3<f32>,
+    front: bool,
+    material: Material,
+    emitter: u32,
+}
+
+fn surface_at(o: vec3<f32>, d: vec3<f32>, h: Hit) -> Surface {
+    let tri = tris[h.tri];
+    let ng = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+    let ns = shading_normal(h.tri, tri, ng, h.b);
+    let m = materials[tri.material];
+    let facing = dot(ns, d) < 0.0;
+    let two_sided = (m.flags & 1u) != 0u;
+    return Surface(o + d * h.t, ng, ns, select(-ns, ns, facing), facing || two_sided, m, tri.emitter);
+}
+
+// The diffuse BSDF (the side `n` faces, which the walk arrived on): f·cos towards `wo`,
+// and the density of sampling `wo` (by the cosine).
+fn bsdf_fcos(m: Material, n: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
+    return m.reflectance * (INV_PI * max(dot(n, wo), 0.0));
+}
+
+fn bsdf_pdf(n: vec3<f32>, wo: vec3<f32>) -> f32 {
+    return max(dot(n, wo), 0.0) * INV_PI;
+}
+
+// Light transport's adjoint BSDF with shading normals (Veach's correction, as the CPU's
+// shading_normal_correction): |wi·ns||wo·ng| / (|wi·ng||wo·ns|).
+fn adjoint_correction(s: Surface, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+    let den = abs(dot(wi, s.ng)) * abs(dot(wo, s.ns));
+    return select(0.0, abs(dot(wi, s.ns)) * abs(dot(wo, s.ng)) / den, den > 0.0);
+}
+
+// Russian roulette: the probability with which a walk of throughput `beta` went on, or 0
+// where it stops (the CPU's rule: the largest component, at most 0.95).
+fn survival(beta: vec3<f32>) -> f32 {
+    let q = min(max(beta.x, max(beta.y, beta.z)), 0.95);
+    return select(0.0, q, rnd() < q);
 }

@@ -1,0 +1,172 @@
+// The camera pass: one thread per pixel, `samples` camera paths per dispatch. It is the CPU's
+// `pt` (next-event estimation, power-heuristic MIS between it and emitter hits, Russian
+// roulette from rr_depth), and with P.bidirectional the path-tracing half of instant BPT
+// (seed 002, §3): the same paths, weighted against light tracing as well.
+//
+// MIS (seed 002 §3.2, in the notation of the CPU's mis.rs): a path x_0 … x_k runs from a
+// light (x_0) to the lens (x_k); L_i and C_i are the densities per unit area of x_i when
+// sampled from the light's side and from the camera's. The camera walk visits
+// y_1 = x_{k−1}, y_2, … and keeps one float, `prod` = Π (L/C)² over its vertices whose both
+// densities are known (y_j's L needs y_{j+1}'s BSDF sampled from the light's side, known once
+// the walk has left y_{j+1}). Strategies, with their density relative to an emitter hit:
+// next-event estimation L_0/C_0 (x_1 not specular), light tracing Π_{i<k} L_i/C_i (x_{k−1}
+// not specular); the light hitting a pinhole has density 0.
+
+fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
+    seed_rng(px, py, sample, 0u);
+    let bidir = P.bidirectional != 0u;
+    let pos = vec2<f32>(f32(px) + rnd(), f32(py) + rnd());
+    let local = vec3<f32>((1.0 - 2.0 * pos.x / f32(P.width)) * P.tan_half.x,
+                          (1.0 - 2.0 * pos.y / f32(P.height)) * P.tan_half.y, 1.0);
+    let to_world = mat3x3<f32>(P.cam_x.xyz, P.cam_y.xyz, P.cam_z.xyz);
+    var o = P.cam_pos.xyz + to_world * (local * P.near_clip);
+    var d = normalize(to_world * local);
+    let cos_cam = dot(d, P.forward.xyz);
+    var pdf_dir = 1.0 / (film_area() * cos_cam * cos_cam * cos_cam);   // 0: specular
+    var prev_p = P.cam_pos.xyz;
+    var l = vec3<f32>(0.0);
+    var beta = vec3<f32>(1.0);
+    var m = 0;                   // the current vertex is y_m (m segments from the lens)
+    // MIS state: the product over y_1 … y_{m−2}, and y_{m−1}'s camera-side density,
+    // geometric normal and whether it is specular; whether y_1 is.
+    var prod = 1.0;
+    var c_prev = 0.0;
+    var n_prev = vec3<f32>(0.0);
+    var delta_prev = false;
+    var delta_first = false;
+    loop {
+        let h = intersect(o, d, 3.0e38, false);
+        if (h.tri == NONE) {
+            break;
+        }
+        m = m + 1;
+        let s = surface_at(o, d, h);
+        let dist2 = dot(s.p - prev_p, s.p - prev_p);
+        let cos_g = abs(dot(s.ng, d));
+        let c_here = pdf_dir * cos_g / dist2;
+        // y_{m−1}'s |cos| on the segment to y_m: its densities from this side are per unit
+        // area there.
+        let cos_prev = abs(dot(n_prev, d));
+        // Emitter hit: y_m = x_0, the path has k = m segments.
+        let cos_e = -dot(s.ns, d);
+        if (s.emitter != NONE && cos_e > 0.0) {
+            let e = emitters[s.emitter];
+            let l0 = e.pick / e.area;
+            var inv_w = 1.0;
+            if (m == 1) {
+                // Seen directly: only light tracing's light point joined to the lens competes.
+                if (bidir) {
+                    inv_w = inv_w + sq(l0 / c_here);
+                }
+            } else {
+                let nee = sq(l0 / remap(c_here));
+                if (!delta_prev) {
+                    inv_w = inv_w + nee;
+                }
+                if (bidir && !delta_first) {
+                    // y_{m−1}'s light-side density: the emission's (cosine) towards it.
+                    let l_prev = cos_e * INV_PI * cos_prev / dist2;
+                    inv_w = inv_w + prod * sq(l_prev / remap(c_prev)) * nee;
+                }
+            }
+            l = l + beta * e.radiance / inv_w;
+        }
+        if ((P.max_depth >= 0 && m >= P.max_depth) || !s.front) {
+            break;
+        }
+        let wi = -d;
+        // Next-event estimation: y_m = x_1 joined to a light point x_0 (k = m + 1).
+        if (P.emitters > 0u) {
+            let lp = sample_light_point();
+            let to = lp.q - s.p;
+            let dist2_l = dot(to, to);
+            let wl = to * inverseSqrt(dist2_l);
+            let cos_l = abs(dot(lp.ng, wl));
+            let cos_emit = -dot(lp.ns, wl);
+            let fcos = bsdf_fcos(s.material, s.n, wl);
+            if (cos_emit > 0.0 && cos_l > 0.0 && max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
+                // Aimed at q from the offset origin itself (as the CPU's spawn_ray_to): the
+                // offset would otherwise shift the ray beside q, into a small emitter's
+                // own triangles at grazing angles.
+                let po = spawn(s.p, s.ng, wl);
+                let shadow_dist = distance(lp.q, po);
+                let shadow = intersect(po, (lp.q - po) / shadow_dist, shadow_dist * (1.0 - 1e-4), true);
+                if (shadow.tri == NONE) {
+                    let l0 = lp.e.pick / lp.e.area;
+                    let c0 = bsdf_pdf(s.n, wl) * cos_l / dist2_l;
+                    var inv_w = 1.0 + sq(c0 / l0);
+                    if (bidir && !delta_first) {
+                        // Light tracing: L/C of y_m (the emission's density) and y_{m−1} (y_m's
+                        // BSDF sampled from the light point's side).
+                        var r = prod * sq((cos_emit * INV_PI * abs(dot(s.ng, wl)) / dist2_l) / remap(c_here));
+                        if (m >= 2) {
+                            r = r * sq((bsdf_pdf(s.n, wi) * cos_prev / dist2) / remap(c_prev));
+                        }
+                        inv_w = inv_w + r;
+                    }
+                    l = l + beta * fcos * lp.e.radiance * (cos_l / (dist2_l * l0 * inv_w));
+                }
+            }
+        }
+        // Continue along a cosine-distributed direction: f·cos/p = reflectance.
+        let local_wo = cosine_hemisphere(vec2<f32>(rnd(), rnd()));
+        if (local_wo.z <= 0.0) {
+            break;
+        }
+        let wo = frame(s.n) * local_wo;
+        beta = beta * s.material.reflectance;
+        if (max(beta.x, max(beta.y, beta.z)) <= 0.0) {
+            break;
+        }
+        // y_{m−1}'s light-side density is y_m's BSDF sampled from wo towards it.
+        if (m >= 2) {
+            prod = prod * sq(remap(bsdf_pdf(s.n, wi) * cos_prev / dist2) / remap(c_prev));
+        }
+        let delta = false;
+        if (m == 1) {
+            delta_first = delta;
+        }
+        c_prev = c_here;
+        n_prev = s.ng;
+        delta_prev = delta;
+        prev_p = s.p;
+        pdf_dir = local_wo.z * INV_PI;
+        o = spawn(s.p, s.ng, wo);
+        d = wo;
+        if (m >= P.rr_depth) {
+            let q = survival(beta);
+            if (q == 0.0) {
+                break;
+            }
+            beta = beta / q;
+        }
+        if (m > 4096) {
+            break;
+        }
+    }
+    return l;
+}
+
+@compute @workgroup_size(8, 8)
+fn camera_main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let px = P.x0 + id.x;
+    let py = P.y0 + id.y;
+    if (px >= P.width || py >= P.height) {
+        return;
+    }
+    let i = py * P.width + px;
+    var sum = sums[i];
+    var sq_sum = squares[i];
+    for (var k = 0u; k < P.samples; k = k + 1u) {
+        let l = camera_radiance(px, py, P.first_sample + k);
+        // Non-finite samples are rejected and counted, as on the CPU.
+        if (finite(l.x) && finite(l.y) && finite(l.z)) {
+            sum = sum + vec4<f32>(l, 1.0);
+            sq_sum = sq_sum + vec4<f32>(l * l, 0.0);
+        } else {
+            sq_sum.w = sq_sum.w + 1.0;
+        }
+    }
+    sums[i] = sum;
+    squares[i] = sq_sum;
+}

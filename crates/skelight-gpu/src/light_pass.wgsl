@@ -1,0 +1,200 @@
+// The light pass of instant BPT (seed 002, §3): one light path per (pixel, sample) of the
+// dispatch, its own random stream; every vertex x_j not specular is joined to the pinhole
+// (explicit light paths, the CPU's t = 1) and splatted onto the film with atomic adds. A
+// pinhole cannot be hit, so implicit light paths do not occur.
+//
+// MIS (see camera_pass.wgsl for the notation): the light walk keeps one float, `prod` =
+// Π (C/L)² over x_1 … x_{j−2}, and the origin's term `origin` = [x_1 not specular] + (C_0/L_0)²
+// (next-event estimation and the camera hitting the light, relative to light tracing, share
+// the product over x_1 … x_{j}); x_{j−1}'s camera-side density needs x_j's BSDF sampled from
+// the lens's side, known once the walk has left x_j or the connection is made.
+
+// Adds `v` to the film's splat accumulator `k` (a float kept as bits: WGSL has no float
+// atomics).
+fn splat_add(k: u32, v: f32) {
+    var old = atomicLoad(&splats[k]);
+    loop {
+        let r = atomicCompareExchangeWeak(&splats[k], old, bitcast<u32>(bitcast<f32>(old) + v));
+        if (r.exchanged) {
+            break;
+        }
+        old = r.old_value;
+    }
+}
+
+fn splat(pixel: u32, c: vec3<f32>) {
+    if (!(finite(c.x) && finite(c.y) && finite(c.z))) {
+        return;
+    }
+    splat_add(3u * pixel, c.x);
+    splat_add(3u * pixel + 1u, c.y);
+    splat_add(3u * pixel + 2u, c.z);
+}
+
+// The pinhole as seen from scene point `p` (geometric normal `ng`): the pixel the point
+// projects to, and what a connection needs.
+struct LensView {
+    visible: bool,
+    pixel: u32,
+    w: vec3<f32>,          // unit direction from p to the lens
+    dist2: f32,
+    importance: f32,       // W_e · pixels / (density of the lens point seen from p)
+    c: f32,                // the camera's density of p per unit area (C of p)
+}
+
+fn lens_view(p: vec3<f32>, ng: vec3<f32>) -> LensView {
+    var v = LensView(false, 0u, vec3<f32>(0.0), 0.0, 0.0, 0.0);
+    let to_lens = P.cam_pos.xyz - p;
+    let local = mat3x3<f32>(P.inv_x.xyz, P.inv_y.xyz, P.inv_z.xyz) * (-to_lens);
+    // Points nearer than the near plane are clipped away.
+    if (!(local.z >= P.near_clip)) {
+        return v;
+    }
+    let sx = (1.0 - local.x / (local.z * P.tan_half.x)) * 0.5;
+    let sy = (1.0 - local.y / (local.z * P.tan_half.y)) * 0.5;
+    if (!(sx >= 0.0 && sx < 1.0 && sy >= 0.0 && sy < 1.0)) {
+        return v;
+    }
+    let px = min(u32(sx * f32(P.width)), P.width - 1u);
+    let py = min(u32(sy * f32(P.height)), P.height - 1u);
+    v.dist2 = dot(to_lens, to_lens);
+    v.w = to_lens * inverseSqrt(v.dist2);
+    let cos_lens = -dot(v.w, P.forward.xyz);
+    if (!(cos_lens > 0.0)) {
+        return v;
+    }
+    // Only the segment beyond the near plane must be free (as the CPU's near_point).
+    let near = P.cam_pos.xyz - to_lens * (P.near_clip / local.z);
+    let po = spawn(p, ng, v.w);
+    let free_dist = distance(near, po);
+    if (free_dist > 0.0 && intersect(po, (near - po) / free_dist, free_dist * (1.0 - 1e-4), true).tri != NONE) {
+        return v;
+    }
+    let pdf_dir = 1.0 / (film_area() * cos_lens * cos_lens * cos_lens);
+    let we = pdf_dir / cos_lens;                  // 1 / (A cos⁴)
+    v.importance = we * f32(P.width * P.height) * cos_lens / v.dist2;
+    v.c = pdf_dir * abs(dot(ng, v.w)) / v.dist2;
+    v.pixel = py * P.width + px;
+    v.visible = true;
+    return v;
+}
+
+fn light_path(px: u32, py: u32, sample: u32) {
+    seed_rng(px, py, sample, 1u);
+    if (P.emitters == 0u || P.max_depth == 0) {
+        return;
+    }
+    let lp = sample_light_point();
+    let l0 = lp.e.pick / lp.e.area;
+    // The light point seen by the camera (k = 1): only the camera hitting it competes.
+    let view0 = lens_view(lp.q, lp.ng);
+    let cos_view = dot(lp.ns, view0.w);
+    if (view0.visible && cos_view > 0.0) {
+        let inv_w = 1.0 + sq(view0.c / l0);
+        splat(view0.pixel, lp.e.radiance * (abs(dot(lp.ng, view0.w)) / l0 * view0.importance / inv_w));
+    }
+    // Emission by the cosine about the shading normal (the side that emits).
+    let local_wo = cosine_hemisphere(vec2<f32>(rnd(), rnd()));
+    let d0 = frame(lp.ns) * local_wo;
+    if (local_wo.z <= 0.0) {
+        return;
+    }
+    var pdf_dir = local_wo.z * INV_PI;
+    // Radiance × |cos_g| over the densities of the point and the direction.
+    var beta = lp.e.radiance * (abs(dot(lp.ng, d0)) / (l0 * pdf_dir));
+    var o = spawn(lp.q, lp.ng, d0);
+    var d = d0;
+    var prev_p = lp.q;
+    // MIS state: the product over x_1 … x_{j−2}, x_{j−1}'s light-side density and geometric
+    // normal (for its camera-side density per unit area), the origin's term.
+    var prod = 1.0;
+    var l_prev = l0;
+    var n_prev = lp.ng;
+    var origin = 0.0;
+    var j = 0;
+    loop {
+        let h = intersect(o, d, 3.0e38, false);
+        if (h.tri == NONE) {
+            break;
+        }
+        j = j + 1;
+        let s = surface_at(o, d, h);
+        if (!s.front) {
+            break;
+        }
+        let dist2 = dot(s.p - prev_p, s.p - prev_p);
+        let cos_g = abs(dot(s.ng, d));
+        let l_here = pdf_dir * cos_g / dist2;
+        // x_{j−1}'s |cos| on the segment to x_j.
+        let cos_prev = abs(dot(n_prev, d));
+        let wi = -d;
+        // Explicit light path: x_j joined to the lens (j + 1 segments).
+        if (P.max_depth < 0 || j + 1 <= P.max_depth) {
+            let view = lens_view(s.p, s.ng);
+            if (view.visible) {
+                let fcos = bsdf_fcos(s.material, s.n, view.w) * adjoint_correction(s, wi, view.w);
+                if (max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
+                    // x_{j−1}'s camera-side density: x_j's BSDF sampled from the lens's side.
+                    let c_prev = bsdf_pdf(s.n, wi) * cos_prev / dist2;
+                    var inv_w = 1.0;
+                    if (j == 1) {
+                        inv_w = 1.0 + sq(view.c / l_here) * (1.0 + sq(c_prev / l0));
+                    } else {
+                        inv_w = 1.0 + prod * sq(c_prev / remap(l_prev)) * sq(view.c / remap(l_here)) * origin;
+                    }
+                    splat(view.pixel, beta * fcos * (view.importance / inv_w));
+                }
+            }
+        }
+        // A further vertex would make paths longer than max_depth.
+        if (P.max_depth >= 0 && j + 2 > P.max_depth) {
+            break;
+        }
+        let local_wo = cosine_hemisphere(vec2<f32>(rnd(), rnd()));
+        if (local_wo.z <= 0.0) {
+            break;
+        }
+        let wo = frame(s.n) * local_wo;
+        beta = beta * s.material.reflectance * adjoint_correction(s, wi, wo);
+        if (!(max(beta.x, max(beta.y, beta.z)) > 0.0)) {
+            break;
+        }
+        let delta = false;
+        // x_{j−1}'s camera-side density: x_j's BSDF sampled from wo towards it.
+        let c_prev = bsdf_pdf(s.n, wi) * cos_prev / dist2;
+        if (j == 1) {
+            origin = select(1.0, 0.0, delta) + sq(remap(c_prev) / l0);
+        } else {
+            prod = prod * sq(remap(c_prev) / remap(l_prev));
+        }
+        l_prev = l_here;
+        n_prev = s.ng;
+        prev_p = s.p;
+        pdf_dir = local_wo.z * INV_PI;
+        o = spawn(s.p, s.ng, wo);
+        d = wo;
+        // Russian roulette counts the light point among the vertices, as the CPU.
+        if (j + 1 > P.rr_depth) {
+            let q = survival(beta);
+            if (q == 0.0) {
+                break;
+            }
+            beta = beta / q;
+        }
+        if (j > 4096) {
+            break;
+        }
+    }
+}
+
+@compute @workgroup_size(8, 8)
+fn light_main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let px = P.x0 + id.x;
+    let py = P.y0 + id.y;
+    if (px >= P.width || py >= P.height) {
+        return;
+    }
+    for (var k = 0u; k < P.samples; k = k + 1u) {
+        light_path(px, py, P.first_sample + k);
+    }
+}
