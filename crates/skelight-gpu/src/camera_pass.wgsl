@@ -1,6 +1,6 @@
 // The camera pass: one thread per pixel, `samples` camera paths per dispatch. It is the CPU's
-// `pt` (next-event estimation, power-heuristic MIS between it and emitter hits, Russian
-// roulette from rr_depth), and with P.bidirectional the path-tracing half of instant BPT
+// `pt` (next-event estimation at non-specular vertices, power-heuristic MIS between it and
+// emitter hits, Russian roulette from rr_depth), and with P.bidirectional the path-tracing half of instant BPT
 // (seed 002, §3): the same paths, weighted against light tracing as well.
 //
 // MIS (seed 002 §3.2, in the notation of the CPU's mis.rs): a path x_0 … x_k runs from a
@@ -76,7 +76,7 @@ fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
         }
         let wi = -d;
         // Next-event estimation: y_m = x_1 joined to a light point x_0 (k = m + 1).
-        if (P.emitters > 0u) {
+        if (P.emitters > 0u && s.material.kind == DIFFUSE) {
             let lp = sample_light_point();
             let to = lp.q - s.p;
             let dist2_l = dot(to, to);
@@ -93,14 +93,14 @@ fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
                 let shadow = intersect(po, (lp.q - po) / shadow_dist, shadow_dist * (1.0 - 1e-4), true);
                 if (shadow.tri == NONE) {
                     let l0 = lp.e.pick / lp.e.area;
-                    let c0 = bsdf_pdf(s.n, wl) * cos_l / dist2_l;
+                    let c0 = bsdf_pdf(s.material, s.n, wl) * cos_l / dist2_l;
                     var inv_w = 1.0 + sq(c0 / l0);
                     if (bidir && !delta_first) {
                         // Light tracing: L/C of y_m (the emission's density) and y_{m−1} (y_m's
                         // BSDF sampled from the light point's side).
                         var r = prod * sq((cos_emit * INV_PI * abs(dot(s.ng, wl)) / dist2_l) / remap(c_here));
                         if (m >= 2) {
-                            r = r * sq((bsdf_pdf(s.n, wi) * cos_prev / dist2) / remap(c_prev));
+                            r = r * sq((bsdf_pdf(s.material, s.n, wi) * cos_prev / dist2) / remap(c_prev));
                         }
                         inv_w = inv_w + r;
                     }
@@ -108,21 +108,20 @@ fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
                 }
             }
         }
-        // Continue along a cosine-distributed direction: f·cos/p = reflectance.
-        let local_wo = cosine_hemisphere(vec2<f32>(rnd(), rnd()));
-        if (local_wo.z <= 0.0) {
+        let bs = bsdf_sample(s, wi, true);
+        if (!bs.ok) {
             break;
         }
-        let wo = frame(s.n) * local_wo;
-        beta = beta * s.material.reflectance;
-        if (max(beta.x, max(beta.y, beta.z)) <= 0.0) {
+        let wo = bs.wo;
+        beta = beta * bs.weight;
+        if (!(max(beta.x, max(beta.y, beta.z)) > 0.0)) {
             break;
         }
         // y_{m−1}'s light-side density is y_m's BSDF sampled from wo towards it.
         if (m >= 2) {
-            prod = prod * sq(remap(bsdf_pdf(s.n, wi) * cos_prev / dist2) / remap(c_prev));
+            prod = prod * sq(remap(bsdf_pdf(s.material, s.n, wi) * cos_prev / dist2) / remap(c_prev));
         }
-        let delta = false;
+        let delta = bs.pdf == 0.0;
         if (m == 1) {
             delta_first = delta;
         }
@@ -130,7 +129,7 @@ fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
         n_prev = s.ng;
         delta_prev = delta;
         prev_p = s.p;
-        pdf_dir = local_wo.z * INV_PI;
+        pdf_dir = bs.pdf;
         o = spawn(s.p, s.ng, wo);
         d = wo;
         if (m >= P.rr_depth) {

@@ -52,9 +52,19 @@ struct Tri {
 }
 
 struct Material {
-    reflectance: vec3<f32>,
-    flags: u32,            // 1: two-sided
+    reflectance: vec3<f32>,    // diffuse, or specular reflectance
+    flags: u32,                // 1: two-sided
+    eta: vec3<f32>,            // conductor: η per channel; dielectric: interior/exterior in x
+    kind: u32,                 // DIFFUSE, CONDUCTOR, DIELECTRIC
+    k: vec3<f32>,              // conductor: absorption
+    pad0: u32,
+    transmittance: vec3<f32>,  // dielectric: specular transmittance
+    pad1: u32,
 }
+
+const DIFFUSE: u32 = 0u;
+const CONDUCTOR: u32 = 1u;
+const DIELECTRIC: u32 = 2u;
 
 struct Emitter {
     radiance: vec3<f32>,
@@ -73,7 +83,7 @@ struct Emitter {
 @group(0) @binding(5) var<storage, read_write> sums: array<vec4<f32>>;      // rgb, samples
 @group(0) @binding(6) var<storage, read_write> squares: array<vec4<f32>>;   // rgb², rejected
 @group(0) @binding(7) var<storage, read> normals: array<vec4<f32>>;         // 3 per triangle
-@group(0) @binding(8) var<storage, read_write> splats: array<atomic<u32>>;  // rgb per pixel, f32 bits
+// Binding 8, the light pass's splats (rgb per pixel), and `splat_add` are in splat_*.wgsl.
 
 const NONE: u32 = 0xffffffffu;
 const PI: f32 = 3.14159265358979;
@@ -298,14 +308,93 @@ fn surface_at(o: vec3<f32>, d: vec3<f32>, h: Hit) -> Surface {
     return Surface(o + d * h.t, ng, ns, select(-ns, ns, facing), facing || two_sided, m, tri.emitter);
 }
 
-// The diffuse BSDF (the side `n` faces, which the walk arrived on): f·cos towards `wo`,
-// and the density of sampling `wo` (by the cosine).
+// The BSDFs. `n` is the shading normal on the side the walk arrived from (s.n); only the
+// diffuse BSDF has values and densities, the others are specular (sampled only).
+// f·cos towards `wo`:
 fn bsdf_fcos(m: Material, n: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
+    if (m.kind != DIFFUSE) {
+        return vec3<f32>(0.0);
+    }
     return m.reflectance * (INV_PI * max(dot(n, wo), 0.0));
 }
 
-fn bsdf_pdf(n: vec3<f32>, wo: vec3<f32>) -> f32 {
+// The density of sampling `wo` (per solid angle); 0 for specular BSDFs.
+fn bsdf_pdf(m: Material, n: vec3<f32>, wo: vec3<f32>) -> f32 {
+    if (m.kind != DIFFUSE) {
+        return 0.0;
+    }
     return max(dot(n, wo), 0.0) * INV_PI;
+}
+
+struct BsdfSample {
+    wo: vec3<f32>,
+    weight: vec3<f32>,     // f·cos / density
+    pdf: f32,              // 0 for specular
+    ok: bool,
+}
+
+fn fresnel_dielectric(cos_in: f32, eta_in: f32) -> f32 {
+    let inside = cos_in < 0.0;
+    let cos_i = abs(cos_in);
+    let eta = select(eta_in, 1.0 / eta_in, inside);
+    let sin2_t = max(1.0 - cos_i * cos_i, 0.0) / (eta * eta);
+    if (sin2_t >= 1.0) {
+        return 1.0;
+    }
+    let cos_t = sqrt(max(1.0 - sin2_t, 0.0));
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5 * (r_parl * r_parl + r_perp * r_perp);
+}
+
+fn fresnel_conductor_channel(cos_i: f32, eta_r: f32, eta_i: f32) -> f32 {
+    let c2 = cos_i * cos_i;
+    let s2 = 1.0 - c2;
+    let t1 = eta_r * eta_r - eta_i * eta_i - s2;
+    let a2pb2 = sqrt(max(t1 * t1 + 4.0 * eta_i * eta_i * eta_r * eta_r, 0.0));
+    let a = sqrt(max(0.5 * (a2pb2 + t1), 0.0));
+    let term1 = a2pb2 + c2;
+    let term2 = 2.0 * cos_i * a;
+    let rs = (term1 - term2) / (term1 + term2);
+    let term3 = a2pb2 * c2 + s2 * s2;
+    let term4 = term2 * s2;
+    let rp = rs * (term3 - term4) / (term3 + term4);
+    return clamp(0.5 * (rs + rp), 0.0, 1.0);
+}
+
+// Samples the BSDF at `s` for a walk arriving from direction `wi` (pointing away from the
+// surface). `radiance`: the camera's walk (a dielectric compresses radiance by 1/η² where
+// it enters a denser medium; importance is not compressed), as the CPU's TransportMode.
+fn bsdf_sample(s: Surface, wi: vec3<f32>, radiance: bool) -> BsdfSample {
+    let m = s.material;
+    if (m.kind == CONDUCTOR) {
+        let c = dot(s.n, wi);
+        let f = vec3<f32>(fresnel_conductor_channel(c, m.eta.x, m.k.x), fresnel_conductor_channel(c, m.eta.y, m.k.y),
+                          fresnel_conductor_channel(c, m.eta.z, m.k.z));
+        return BsdfSample(2.0 * c * s.n - wi, f * m.reflectance, 0.0, c > 0.0);
+    }
+    if (m.kind == DIELECTRIC) {
+        // In the unflipped shading frame: cos_i < 0 means arriving from inside.
+        let cos_i = dot(s.ns, wi);
+        let r = fresnel_dielectric(cos_i, m.eta.x);
+        if (rnd() < r) {
+            return BsdfSample(2.0 * cos_i * s.ns - wi, m.reflectance, 0.0, true);
+        }
+        let inside = cos_i < 0.0;
+        let eta = select(m.eta.x, 1.0 / m.eta.x, inside);
+        let n = select(s.ns, -s.ns, inside);
+        let c = abs(cos_i);
+        let sin2_t = max(1.0 - c * c, 0.0) / (eta * eta);
+        if (sin2_t >= 1.0) {
+            return BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false);
+        }
+        let wo = -wi / eta + n * (c / eta - sqrt(1.0 - sin2_t));
+        let scale = select(1.0, 1.0 / (eta * eta), radiance);
+        return BsdfSample(wo, m.transmittance * scale, 0.0, true);
+    }
+    // Diffuse: by the cosine, f·cos/p = reflectance.
+    let local = cosine_hemisphere(vec2<f32>(rnd(), rnd()));
+    return BsdfSample(frame(s.n) * local, m.reflectance, local.z * INV_PI, local.z > 0.0);
 }
 
 // Light transport's adjoint BSDF with shading normals (Veach's correction, as the CPU's

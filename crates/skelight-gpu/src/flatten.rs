@@ -40,12 +40,33 @@ pub struct Tri {
     pub flags: u32,
 }
 
+/// Material kinds (`kind` in common.wgsl).
+pub const DIFFUSE: u32 = 0;
+pub const CONDUCTOR: u32 = 1;
+pub const DIELECTRIC: u32 = 2;
+
 #[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable, Debug)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
 pub struct Material {
+    /// Diffuse reflectance, or the specular reflectance of a conductor or dielectric.
     pub reflectance: [f32; 3],
     /// 1: two-sided.
     pub flags: u32,
+    /// A conductor's η per channel; a dielectric's interior over exterior index in x.
+    pub eta: [f32; 3],
+    pub kind: u32,
+    /// A conductor's absorption k per channel.
+    pub k: [f32; 3],
+    pub pad0: u32,
+    /// A dielectric's specular transmittance.
+    pub transmittance: [f32; 3],
+    pub pad1: u32,
+}
+
+impl Material {
+    fn diffuse(reflectance: [f32; 3], flags: u32) -> Material {
+        Material { reflectance, flags, ..Material::default() }
+    }
 }
 
 #[repr(C)]
@@ -101,9 +122,10 @@ pub struct Flat {
 }
 
 /// What the GPU renders today; anything else is refused by [`flatten`].
-pub const FEATURES: &str = "diffuse BSDFs with constant reflectance (one- or two-sided), emitters on \
-    triangle meshes (area lights), shading normals, pinhole cameras, the box filter; no alpha \
-    masks, exact spheres, textures, other BSDFs or other lights yet";
+pub const FEATURES: &str = "diffuse BSDFs with constant reflectance (one- or two-sided), smooth \
+    conductors and smooth dielectrics with constant colours, emitters on triangle meshes (area \
+    lights), shading normals, pinhole cameras, the box filter; no alpha masks, exact spheres, \
+    textures, other BSDFs or other lights yet";
 
 fn unsupported(what: String) -> GpuError {
     GpuError::Unsupported(format!("{what}; the GPU renders {FEATURES}"))
@@ -115,12 +137,29 @@ fn material(bsdf: &Bsdf, name: &str) -> Result<Material, GpuError> {
         Texture::Constant(c) => Ok([c.r, c.g, c.b]),
         _ => Err(unsupported(format!("material '{name}' has a textured reflectance"))),
     };
+    let rgb = |c: Rgb| [c.r, c.g, c.b];
     match bsdf {
-        Bsdf::Diffuse(d) => Ok(Material { reflectance: constant(&d.reflectance)?, flags: 0 }),
-        Bsdf::Black => Ok(Material { reflectance: [0.0; 3], flags: 0 }),
+        Bsdf::Diffuse(d) => Ok(Material::diffuse(constant(&d.reflectance)?, 0)),
+        Bsdf::Black => Ok(Material::diffuse([0.0; 3], 0)),
+        Bsdf::Conductor(c) => Ok(Material {
+            reflectance: constant(&c.specular_reflectance)?,
+            eta: rgb(c.eta),
+            k: rgb(c.k),
+            kind: CONDUCTOR,
+            ..Material::default()
+        }),
+        // Light crosses a dielectric from either side.
+        Bsdf::Dielectric(d) => Ok(Material {
+            reflectance: rgb(d.specular_reflectance),
+            transmittance: rgb(d.specular_transmittance),
+            eta: [d.eta, 0.0, 0.0],
+            kind: DIELECTRIC,
+            flags: 1,
+            ..Material::default()
+        }),
         Bsdf::TwoSided(front, back) => match (front.as_ref(), back.as_ref()) {
             (Bsdf::Diffuse(f), Bsdf::Diffuse(b)) if constant(&f.reflectance)? == constant(&b.reflectance)? => {
-                Ok(Material { reflectance: constant(&f.reflectance)?, flags: 1 })
+                Ok(Material::diffuse(constant(&f.reflectance)?, 1))
             }
             _ => Err(unsupported(format!(
                 "material '{name}' is two-sided with other than the same diffuse on both sides"

@@ -31,9 +31,17 @@ pub enum GpuError {
     Readback(String),
 }
 
-/// Samples per pixel a dispatch takes at most: long enough to amortise a dispatch, short
-/// enough for drivers' watchdogs, and few enough for f32 sums (the film adds them in f64).
+/// Samples per pixel a dispatch takes at most on a GPU: long enough to amortise a dispatch,
+/// short enough for drivers' watchdogs, and few enough for f32 sums (the film adds them in
+/// f64).
 const SAMPLES_PER_DISPATCH: u32 = 16;
+/// The same on a CPU adapter (lavapipe): one. llvmpipe ends any shader loop after 65535
+/// iterations, counted across the calls of a thread rather than per call, so the BVH
+/// traversal of a thread's 15th light path through c09's glass ball already stopped early
+/// (a 10 % dark image at 16 samples per dispatch, exact at 4).
+const SAMPLES_PER_DISPATCH_CPU: u32 = 1;
+/// Samples per pixel summed on the device (in f32) before the film takes them (in f64).
+const READBACK_BATCH: u32 = 16;
 /// Pixels along a tile's side: any resolution fits any device's dispatch limits.
 const TILE: u32 = 512;
 
@@ -79,6 +87,7 @@ pub struct GpuRenderer {
     splats: wgpu::Buffer,
     readback: wgpu::Buffer,
     pixels: usize,
+    samples_per_dispatch: u32,
     /// The adapter, in words (name, driver, type).
     pub adapter: String,
 }
@@ -116,9 +125,15 @@ impl GpuRenderer {
         let info = adapter.get_info();
         let name = format!("{} ({}, {:?})", info.name, info.driver, info.device_type);
         let limits = adapter.limits();
+        let float_atomics = adapter.features().contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("skelight"),
+                required_features: if float_atomics {
+                    wgpu::Features::SHADER_FLOAT32_ATOMIC
+                } else {
+                    wgpu::Features::empty()
+                },
                 required_limits: wgpu::Limits {
                     max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
                     max_buffer_size: limits.max_buffer_size,
@@ -128,7 +143,10 @@ impl GpuRenderer {
             })
             .await
             .map_err(|e| GpuError::Device(e.to_string()))?;
-        let source = [include_str!("common.wgsl"), include_str!("camera_pass.wgsl"), include_str!("light_pass.wgsl")];
+        // Splats add with float atomics where the adapter has them, else by compare and swap.
+        let splat = if float_atomics { include_str!("splat_f32.wgsl") } else { include_str!("splat_cas.wgsl") };
+        let source =
+            [include_str!("common.wgsl"), splat, include_str!("camera_pass.wgsl"), include_str!("light_pass.wgsl")];
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("skelight kernels"),
             source: wgpu::ShaderSource::Wgsl(source.concat().into()),
@@ -231,6 +249,11 @@ impl GpuRenderer {
             splats,
             readback,
             pixels,
+            samples_per_dispatch: if info.device_type == wgpu::DeviceType::Cpu {
+                SAMPLES_PER_DISPATCH_CPU
+            } else {
+                SAMPLES_PER_DISPATCH
+            },
             adapter: name,
         })
     }
@@ -253,29 +276,34 @@ impl GpuRenderer {
         self.params.seed_hi = (seed >> 32) as u32;
         let mut done = 0;
         while done < spp {
-            let n = SAMPLES_PER_DISPATCH.min(spp - done);
+            // A batch of READBACK_BATCH samples per pixel accumulates on the device (f32),
+            // in dispatches of `samples_per_dispatch`, then is added to the film in f64.
+            let n = READBACK_BATCH.min(spp - done);
             let mut encoder = self.device.create_command_encoder(&Default::default());
             encoder.clear_buffer(&self.sums, 0, None);
             encoder.clear_buffer(&self.squares, 0, None);
             encoder.clear_buffer(&self.splats, 0, None);
             self.queue.submit([encoder.finish()]);
-            for y0 in (0..h).step_by(TILE as usize) {
-                for x0 in (0..w).step_by(TILE as usize) {
-                    let p = Params { first_sample: first + done, samples: n, x0, y0, ..self.params };
-                    self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
-                    let mut encoder = self.device.create_command_encoder(&Default::default());
-                    {
-                        let mut pass = encoder.begin_compute_pass(&Default::default());
-                        pass.set_bind_group(0, &self.bind_group, &[]);
-                        let (tw, th) = (TILE.min(w - x0), TILE.min(h - y0));
-                        pass.set_pipeline(&self.camera_pass);
-                        pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
-                        if self.estimator == Estimator::Ibpt {
-                            pass.set_pipeline(&self.light_pass);
+            for offset in (0..n).step_by(self.samples_per_dispatch as usize) {
+                let samples = self.samples_per_dispatch.min(n - offset);
+                for y0 in (0..h).step_by(TILE as usize) {
+                    for x0 in (0..w).step_by(TILE as usize) {
+                        let p = Params { first_sample: first + done + offset, samples, x0, y0, ..self.params };
+                        self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
+                        let mut encoder = self.device.create_command_encoder(&Default::default());
+                        {
+                            let mut pass = encoder.begin_compute_pass(&Default::default());
+                            pass.set_bind_group(0, &self.bind_group, &[]);
+                            let (tw, th) = (TILE.min(w - x0), TILE.min(h - y0));
+                            pass.set_pipeline(&self.camera_pass);
                             pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
+                            if self.estimator == Estimator::Ibpt {
+                                pass.set_pipeline(&self.light_pass);
+                                pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
+                            }
                         }
+                        self.queue.submit([encoder.finish()]);
                     }
-                    self.queue.submit([encoder.finish()]);
                 }
             }
             self.read_into(film, n)?;

@@ -9,19 +9,6 @@
 // the product over x_1 … x_{j}); x_{j−1}'s camera-side density needs x_j's BSDF sampled from
 // the lens's side, known once the walk has left x_j or the connection is made.
 
-// Adds `v` to the film's splat accumulator `k` (a float kept as bits: WGSL has no float
-// atomics).
-fn splat_add(k: u32, v: f32) {
-    var old = atomicLoad(&splats[k]);
-    loop {
-        let r = atomicCompareExchangeWeak(&splats[k], old, bitcast<u32>(bitcast<f32>(old) + v));
-        if (r.exchanged) {
-            break;
-        }
-        old = r.old_value;
-    }
-}
-
 fn splat(pixel: u32, c: vec3<f32>) {
     if (!(finite(c.x) && finite(c.y) && finite(c.z))) {
         return;
@@ -135,7 +122,7 @@ fn light_path(px: u32, py: u32, sample: u32) {
                 let fcos = bsdf_fcos(s.material, s.n, view.w) * adjoint_correction(s, wi, view.w);
                 if (max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
                     // x_{j−1}'s camera-side density: x_j's BSDF sampled from the lens's side.
-                    let c_prev = bsdf_pdf(s.n, wi) * cos_prev / dist2;
+                    let c_prev = bsdf_pdf(s.material, s.n, wi) * cos_prev / dist2;
                     var inv_w = 1.0;
                     if (j == 1) {
                         inv_w = 1.0 + sq(view.c / l_here) * (1.0 + sq(c_prev / l0));
@@ -150,18 +137,18 @@ fn light_path(px: u32, py: u32, sample: u32) {
         if (P.max_depth >= 0 && j + 2 > P.max_depth) {
             break;
         }
-        let local_wo = cosine_hemisphere(vec2<f32>(rnd(), rnd()));
-        if (local_wo.z <= 0.0) {
+        let bs = bsdf_sample(s, wi, false);
+        if (!bs.ok) {
             break;
         }
-        let wo = frame(s.n) * local_wo;
-        beta = beta * s.material.reflectance * adjoint_correction(s, wi, wo);
+        let wo = bs.wo;
+        beta = beta * bs.weight * adjoint_correction(s, wi, wo);
         if (!(max(beta.x, max(beta.y, beta.z)) > 0.0)) {
             break;
         }
-        let delta = false;
+        let delta = bs.pdf == 0.0;
         // x_{j−1}'s camera-side density: x_j's BSDF sampled from wo towards it.
-        let c_prev = bsdf_pdf(s.n, wi) * cos_prev / dist2;
+        let c_prev = bsdf_pdf(s.material, s.n, wi) * cos_prev / dist2;
         if (j == 1) {
             origin = select(1.0, 0.0, delta) + sq(remap(c_prev) / l0);
         } else {
@@ -170,7 +157,7 @@ fn light_path(px: u32, py: u32, sample: u32) {
         l_prev = l_here;
         n_prev = s.ng;
         prev_p = s.p;
-        pdf_dir = local_wo.z * INV_PI;
+        pdf_dir = bs.pdf;
         o = spawn(s.p, s.ng, wo);
         d = wo;
         // Russian roulette counts the light point among the vertices, as the CPU.
