@@ -51,7 +51,52 @@ pub(crate) fn render(args: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// `bench render --device gpu`: samples/s and rays/s after one warm-up sample (shader
+/// compilation and first dispatches), and what the renderer keeps on the device.
+#[cfg(feature = "gpu")]
+pub(crate) fn bench(path: &std::path::Path, scene: &skelight::scene::Scene, name: &str, spp: u32) -> Result<()> {
+    let name = skelight::integrator::registry::find(name)?.name;
+    let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
+        bail!("--device gpu benchmarks pt or ibpt, not {name}");
+    };
+    if spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let mut gpu = skelight_gpu::GpuRenderer::new(scene, estimator)?;
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    let mut film = skelight::film::Film::new(w, h, scene.settings.filter);
+    gpu.render_into(&mut film, 1, 0, 1, |_| {})?;
+    let (rays_before, start) = (gpu.rays_traced(), std::time::Instant::now());
+    gpu.render_into(&mut film, 1, 1, spp, |_| {})?;
+    let secs = start.elapsed().as_secs_f64();
+    let rays = (gpu.rays_traced() - rays_before) as f64;
+    let samples = spp as f64 * (w * h) as f64;
+    let memory = gpu.memory();
+    println!("GPU: {}", gpu.adapter);
+    println!(
+        "{} {name} (gpu): {w}×{h} {spp} spp, max depth {}, {secs:.3} s, {:.3} Msamples/s, {:.1} Mrays/s ({:.1} rays per sample), mean {:?}",
+        path.display(),
+        scene.settings.max_depth,
+        samples / secs / 1e6,
+        rays / secs / 1e6,
+        rays / samples,
+        film.image().mean()
+    );
+    println!(
+        "device memory: scene {:.2} MB, film {} bytes per pixel, path state {} bytes per path (registers only)",
+        memory.scene_bytes as f64 / 1e6,
+        memory.film_bytes_per_pixel,
+        memory.path_state_bytes
+    );
+    Ok(())
+}
+
 #[cfg(not(feature = "gpu"))]
 pub(crate) fn render(_: &RenderArgs) -> Result<()> {
+    bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu")
+}
+
+#[cfg(not(feature = "gpu"))]
+pub(crate) fn bench(_: &std::path::Path, _: &skelight::scene::Scene, _: &str, _: u32) -> Result<()> {
     bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu")
 }

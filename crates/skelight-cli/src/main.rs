@@ -218,6 +218,9 @@ enum BenchKind {
         integrator: String,
         #[arg(long, default_value_t = 16)]
         spp: u32,
+        /// cpu, or gpu (pt or ibpt; reports rays/s and device memory too).
+        #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
+        device: String,
         #[command(flatten)]
         setup: SceneSetup,
     },
@@ -381,9 +384,12 @@ fn bench(what: BenchKind) -> Result<()> {
             }
             Ok(())
         }
-        BenchKind::Render { scene: path, integrator: name, spp, setup } => {
+        BenchKind::Render { scene: path, integrator: name, spp, device, setup } => {
             let mut scene = load_scene(Some(&path), &[])?;
             setup.apply(&mut scene)?;
+            if device == "gpu" {
+                return gpu_cmd::bench(&path, &scene, &name, spp);
+            }
             let (estimator, params) = integrator::registry::parse_spec(&name)?;
             let mut integrator = integrator::registry::create(&estimator, &params)?;
             let opts = RenderOptions { spp: Some(spp), time: None, seed: 1, threads: setup.threads };

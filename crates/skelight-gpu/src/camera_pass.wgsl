@@ -168,4 +168,5 @@ fn camera_main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     sums[i] = sum;
     squares[i] = sq_sum;
+    count_rays();
 }

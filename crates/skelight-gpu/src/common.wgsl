@@ -84,6 +84,19 @@ struct Emitter {
 @group(0) @binding(6) var<storage, read_write> squares: array<vec4<f32>>;   // rgb², rejected
 @group(0) @binding(7) var<storage, read> normals: array<vec4<f32>>;         // 3 per triangle
 // Binding 8, the light pass's splats (rgb per pixel), and `splat_add` are in splat_*.wgsl.
+@group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>, 2>;  // rays: low, high
+
+// Rays this thread traced since it last counted them (for `bench render --device gpu`).
+var<private> rays: u32;
+
+// Adds this thread's rays to the 64-bit counter: the low word, and a carry into the high.
+fn count_rays() {
+    let old = atomicAdd(&counters[0], rays);
+    if (old + rays < old) {
+        atomicAdd(&counters[1], 1u);
+    }
+    rays = 0u;
+}
 
 const NONE: u32 = 0xffffffffu;
 const PI: f32 = 3.14159265358979;
@@ -149,6 +162,7 @@ fn hit_tri(t: Tri, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
 
 // Closest hit before t_max (any hit when `first_hit`).
 fn intersect(o: vec3<f32>, d: vec3<f32>, t_max: f32, first_hit: bool) -> Hit {
+    rays = rays + 1u;
     var best = Hit(t_max, NONE, vec2<f32>(0.0));
     let inv_d = 1.0 / d;
     var i = 0u;

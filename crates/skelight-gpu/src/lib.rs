@@ -40,6 +40,8 @@ const SAMPLES_PER_DISPATCH: u32 = 16;
 /// traversal of a thread's 15th light path through c09's glass ball already stopped early
 /// (a 10 % dark image at 16 samples per dispatch, exact at 4).
 const SAMPLES_PER_DISPATCH_CPU: u32 = 1;
+/// Storage buffers the kernels bind (scene: 5; film: sums, squares, splats; ray counters).
+const STORAGE_BUFFERS: u32 = 9;
 /// Samples per pixel summed on the device (in f32) before the film takes them (in f64).
 const READBACK_BATCH: u32 = 16;
 /// Pixels along a tile's side: any resolution fits any device's dispatch limits.
@@ -72,6 +74,19 @@ impl Estimator {
     }
 }
 
+/// What a renderer keeps on the device. A path's state lives in the registers of its thread
+/// (instant BPT stores no vertices: seed 002 §3.3), so no device memory grows with the paths
+/// in flight; the film's accumulators grow with the pixels.
+#[derive(Clone, Copy, Debug)]
+pub struct Memory {
+    /// Triangles, BVH nodes, shading normals, materials and emitters.
+    pub scene_bytes: u64,
+    /// Sums, squares and splats per pixel.
+    pub film_bytes_per_pixel: u64,
+    /// Device memory per path in flight.
+    pub path_state_bytes: u64,
+}
+
 /// A GPU renderer bound to one scene and estimator.
 pub struct GpuRenderer {
     device: wgpu::Device,
@@ -85,9 +100,12 @@ pub struct GpuRenderer {
     sums: wgpu::Buffer,
     squares: wgpu::Buffer,
     splats: wgpu::Buffer,
+    counters: wgpu::Buffer,
     readback: wgpu::Buffer,
     pixels: usize,
     samples_per_dispatch: u32,
+    rays: u64,
+    memory: Memory,
     /// The adapter, in words (name, driver, type).
     pub adapter: String,
 }
@@ -126,6 +144,12 @@ impl GpuRenderer {
         let name = format!("{} ({}, {:?})", info.name, info.driver, info.device_type);
         let limits = adapter.limits();
         let float_atomics = adapter.features().contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
+        if limits.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
+            return Err(GpuError::Device(format!(
+                "{name} offers {} storage buffers per shader stage; the kernels need {STORAGE_BUFFERS}",
+                limits.max_storage_buffers_per_shader_stage
+            )));
+        }
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("skelight"),
@@ -136,6 +160,7 @@ impl GpuRenderer {
                 },
                 required_limits: wgpu::Limits {
                     max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
+                    max_storage_buffers_per_shader_stage: STORAGE_BUFFERS,
                     max_buffer_size: limits.max_buffer_size,
                     ..wgpu::Limits::default()
                 },
@@ -172,6 +197,7 @@ impl GpuRenderer {
                 binding(6, write),
                 binding(7, read),
                 binding(8, write),
+                binding(9, write),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -213,19 +239,34 @@ impl GpuRenderer {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let counters = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("counters"),
+            size: 8,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            size: (pixels * 44) as u64,
+            size: (pixels * 44 + 8) as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let scene_bytes = [
+            std::mem::size_of_val(flat.nodes.as_slice()),
+            std::mem::size_of_val(flat.tris.as_slice()),
+            std::mem::size_of_val(flat.materials.as_slice()),
+            std::mem::size_of_val(flat.emitters.as_slice()),
+            std::mem::size_of_val(flat.normals.as_slice()),
+        ]
+        .iter()
+        .sum::<usize>() as u64;
         let nodes = storage(&device, "nodes", bytemuck::cast_slice(&flat.nodes));
         let tris = storage(&device, "tris", bytemuck::cast_slice(&flat.tris));
         let materials = storage(&device, "materials", bytemuck::cast_slice(&flat.materials));
         let emitters = storage(&device, "emitters", bytemuck::cast_slice(&flat.emitters));
         let normals = storage(&device, "normals", bytemuck::cast_slice(&flat.normals));
         let entries: Vec<wgpu::BindGroupEntry> =
-            [&params_buffer, &nodes, &tris, &materials, &emitters, &sums, &squares, &normals, &splats]
+            [&params_buffer, &nodes, &tris, &materials, &emitters, &sums, &squares, &normals, &splats, &counters]
                 .iter()
                 .enumerate()
                 .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
@@ -247,7 +288,10 @@ impl GpuRenderer {
             sums,
             squares,
             splats,
+            counters,
             readback,
+            rays: 0,
+            memory: Memory { scene_bytes, film_bytes_per_pixel: 44, path_state_bytes: 0 },
             pixels,
             samples_per_dispatch: if info.device_type == wgpu::DeviceType::Cpu {
                 SAMPLES_PER_DISPATCH_CPU
@@ -283,6 +327,7 @@ impl GpuRenderer {
             encoder.clear_buffer(&self.sums, 0, None);
             encoder.clear_buffer(&self.squares, 0, None);
             encoder.clear_buffer(&self.splats, 0, None);
+            encoder.clear_buffer(&self.counters, 0, None);
             self.queue.submit([encoder.finish()]);
             for offset in (0..n).step_by(self.samples_per_dispatch as usize) {
                 let samples = self.samples_per_dispatch.min(n - offset);
@@ -313,13 +358,24 @@ impl GpuRenderer {
         Ok(())
     }
 
+    /// Rays traced (closest-hit and shadow) since the renderer was made.
+    pub fn rays_traced(&self) -> u64 {
+        self.rays
+    }
+
+    /// What the renderer keeps on the device.
+    pub fn memory(&self) -> Memory {
+        self.memory
+    }
+
     /// Adds the accumulators of a batch of `spp` samples per pixel to `film` in f64.
-    fn read_into(&self, film: &mut Film, spp: u32) -> Result<(), GpuError> {
+    fn read_into(&mut self, film: &mut Film, spp: u32) -> Result<(), GpuError> {
         let bytes = (self.pixels * 16) as u64;
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&self.sums, 0, &self.readback, 0, bytes);
         encoder.copy_buffer_to_buffer(&self.squares, 0, &self.readback, bytes, bytes);
         encoder.copy_buffer_to_buffer(&self.splats, 0, &self.readback, 2 * bytes, (self.pixels * 12) as u64);
+        encoder.copy_buffer_to_buffer(&self.counters, 0, &self.readback, (self.pixels * 44) as u64, 8);
         self.queue.submit([encoder.finish()]);
         let slice = self.readback.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -334,7 +390,10 @@ impl GpuRenderer {
             let data = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
             let values: &[f32] = bytemuck::cast_slice(&data);
             let (sums, rest) = values.split_at(self.pixels * 4);
-            let (squares, splats) = rest.split_at(self.pixels * 4);
+            let (squares, rest) = rest.split_at(self.pixels * 4);
+            let (splats, counters) = rest.split_at(self.pixels * 3);
+            let (lo, hi) = (counters[0].to_bits() as u64, counters[1].to_bits() as u64);
+            self.rays += lo | hi << 32;
             let f = |a: &[f32]| [a[0] as f64, a[1] as f64, a[2] as f64];
             for i in 0..self.pixels {
                 let s = &sums[i * 4..i * 4 + 4];

@@ -184,4 +184,5 @@ fn light_main(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var k = 0u; k < P.samples; k = k + 1u) {
         light_path(px, py, P.first_sample + k);
     }
+    count_rays();
 }
