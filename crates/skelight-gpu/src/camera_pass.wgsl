@@ -14,6 +14,9 @@
 
 fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
     seed_rng(px, py, sample, 0u);
+    if (P.max_depth == 0) {
+        return vec3<f32>(0.0);   // no segment at all: black, as the CPU
+    }
     let bidir = P.bidirectional != 0u;
     let pos = vec2<f32>(f32(px) + rnd(), f32(py) + rnd());
     let local = vec3<f32>((1.0 - 2.0 * pos.x / f32(P.width)) * P.tan_half.x,

@@ -102,9 +102,13 @@ const NONE: u32 = 0xffffffffu;
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.318309886183791;
 
-// Random numbers: a counter hashed with a per-sample key (counter-based, so no state
-// correlates neighbouring pixels or samples). `lowbias32` is Wellons's integer hash.
-var<private> rng_key: u32;
+// Random numbers: a counter hashed with a per-sample key of two words, one from the pixel and
+// one from the sample and pass (counter-based, so no state correlates neighbouring pixels or
+// samples). One 32-bit key would repeat whole streams: two (pixel, sample) pairs share a key
+// with probability 2^-32, i.e. about 1 % of the paths of a 512² × 1024 spp render. `lowbias32`
+// is Wellons's integer hash.
+var<private> rng_pixel: u32;
+var<private> rng_sample: u32;
 var<private> rng_n: u32;
 
 fn lowbias32(v: u32) -> u32 {
@@ -120,7 +124,7 @@ fn lowbias32(v: u32) -> u32 {
 // Uniform in [0, 1), 24 bits, as the CPU's next_f32.
 fn rnd() -> f32 {
     rng_n = rng_n + 1u;
-    return f32(lowbias32(rng_key + lowbias32(rng_n)) >> 8u) * (1.0 / 16777216.0);
+    return f32(lowbias32(rng_pixel ^ lowbias32(rng_sample ^ lowbias32(rng_n))) >> 8u) * (1.0 / 16777216.0);
 }
 
 struct Hit {
@@ -230,7 +234,9 @@ fn shading_normal(k: u32, t: Tri, ng: vec3<f32>, b: vec2<f32>) -> vec3<f32> {
         return ng;
     }
     let n = normals[3u * k].xyz * (1.0 - b.x - b.y) + normals[3u * k + 1u].xyz * b.x + normals[3u * k + 2u].xyz * b.y;
-    return normalize(n);
+    // Opposite vertex normals can cancel: the geometric normal then, as the CPU.
+    let len2 = dot(n, n);
+    return select(ng, n * inverseSqrt(len2), len2 > 0.0);
 }
 
 // Picks an emitting triangle by its cumulative probabilities.
@@ -270,8 +276,8 @@ fn remap(pdf: f32) -> f32 {
 // The generator of one sample of one pixel: `stream` 0 for the camera pass, 1 for the light
 // pass, so that the two are independent and every (seed, pixel, sample) is reproducible.
 fn seed_rng(px: u32, py: u32, sample: u32, stream: u32) {
-    let pixel = py * P.width + px;
-    rng_key = lowbias32(P.seed_lo ^ lowbias32(P.seed_hi ^ lowbias32(pixel ^ lowbias32(sample * 2u + stream))));
+    rng_pixel = lowbias32(P.seed_lo ^ lowbias32(py * P.width + px));
+    rng_sample = lowbias32(P.seed_hi ^ lowbias32(sample * 2u + stream + 0x9e3779b9u));
     rng_n = 0u;
 }
 
