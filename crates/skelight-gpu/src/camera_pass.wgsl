@@ -79,15 +79,15 @@ fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
         }
         let wi = -d;
         // Next-event estimation: y_m = x_1 joined to a light point x_0 (k = m + 1).
-        if (P.emitters > 0u && s.material.kind == DIFFUSE) {
+        if (P.emitters > 0u && has_smooth(s.material)) {
             let lp = sample_light_point();
             let to = lp.q - s.p;
             let dist2_l = dot(to, to);
             let wl = to * inverseSqrt(dist2_l);
-            let cos_l = abs(dot(lp.ng, wl));
-            let cos_emit = -dot(lp.ns, wl);
-            let fcos = bsdf_fcos(s.material, s.n, wl);
-            if (cos_emit > 0.0 && cos_l > 0.0 && max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
+            let cos_l = light_cos(lp, wl);
+            let le = emitted(lp, -wl);
+            let fcos = bsdf_eval(s, wi, wl);
+            if (max(le.x, max(le.y, le.z)) > 0.0 && cos_l > 0.0 && max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
                 // Aimed at q from the offset origin itself (as the CPU's spawn_ray_to): the
                 // offset would otherwise shift the ray beside q, into a small emitter's
                 // own triangles at grazing angles.
@@ -95,19 +95,22 @@ fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
                 let shadow_dist = distance(lp.q, po);
                 let shadow = intersect(po, (lp.q - po) / shadow_dist, shadow_dist * (1.0 - 1e-4), true);
                 if (shadow.tri == NONE) {
-                    let l0 = lp.e.pick / lp.e.area;
-                    let c0 = bsdf_pdf(s.material, s.n, wl) * cos_l / dist2_l;
-                    var inv_w = 1.0 + sq(c0 / l0);
+                    let l0 = origin_density(lp);
+                    var inv_w = 1.0;
+                    // The camera's walk hitting the light (area lights only).
+                    if (!lp.delta) {
+                        inv_w = inv_w + sq(bsdf_pdf(s, wi, wl) * cos_l / dist2_l / l0);
+                    }
                     if (bidir && !delta_first) {
                         // Light tracing: L/C of y_m (the emission's density) and y_{m−1} (y_m's
                         // BSDF sampled from the light point's side).
-                        var r = prod * sq((cos_emit * INV_PI * abs(dot(s.ng, wl)) / dist2_l) / remap(c_here));
+                        var r = prod * sq((emission_pdf(lp, -wl) * abs(dot(s.ng, wl)) / dist2_l) / remap(c_here));
                         if (m >= 2) {
-                            r = r * sq((bsdf_pdf(s.material, s.n, wi) * cos_prev / dist2) / remap(c_prev));
+                            r = r * sq((bsdf_pdf(s, wl, wi) * cos_prev / dist2) / remap(c_prev));
                         }
                         inv_w = inv_w + r;
                     }
-                    l = l + beta * fcos * lp.e.radiance * (cos_l / (dist2_l * l0 * inv_w));
+                    l = l + beta * fcos * le * (cos_l / (dist2_l * l0 * inv_w));
                 }
             }
         }
@@ -120,11 +123,13 @@ fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
         if (!(max(beta.x, max(beta.y, beta.z)) > 0.0)) {
             break;
         }
-        // y_{m−1}'s light-side density is y_m's BSDF sampled from wo towards it.
-        if (m >= 2) {
-            prod = prod * sq(remap(bsdf_pdf(s.material, s.n, wi) * cos_prev / dist2) / remap(c_prev));
-        }
         let delta = bs.pdf == 0.0;
+        // y_{m−1}'s light-side density is y_m's BSDF sampled from wo towards it (0 through
+        // a delta lobe, which counts as 1).
+        if (m >= 2) {
+            let back = select(bsdf_pdf(s, wo, wi), 0.0, delta);
+            prod = prod * sq(remap(back * cos_prev / dist2) / remap(c_prev));
+        }
         if (m == 1) {
             delta_first = delta;
         }

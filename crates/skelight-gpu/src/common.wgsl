@@ -52,27 +52,42 @@ struct Tri {
 }
 
 struct Material {
-    reflectance: vec3<f32>,    // diffuse, or specular reflectance
-    flags: u32,                // 1: two-sided
-    eta: vec3<f32>,            // conductor: η per channel; dielectric: interior/exterior in x
-    kind: u32,                 // DIFFUSE, CONDUCTOR, DIELECTRIC
+    reflectance: vec3<f32>,    // diffuse reflectance, or a conductor's/dielectric's specular
+    flags: u32,                // TWO_SIDED, BECKMANN, NONLINEAR
+    eta: vec3<f32>,            // conductor: η per channel; dielectric: interior/exterior in x;
+                               // plastics: (η, internal diffuse reflectance, specular weight);
+                               // Phong: specular weight in x
+    kind: u32,                 // DIFFUSE … ROUGH_DIFFUSE
     k: vec3<f32>,              // conductor: absorption
-    pad0: u32,
-    transmittance: vec3<f32>,  // dielectric: specular transmittance
-    pad1: u32,
+    alpha: f32,                // microfacet roughness, Phong exponent, Oren–Nayar σ
+    transmittance: vec3<f32>,  // dielectric: transmittance; plastic, Phong: specular reflectance
+    table: u32,                // rough plastic: where its transmittance table starts in `data`
 }
 
 const DIFFUSE: u32 = 0u;
 const CONDUCTOR: u32 = 1u;
 const DIELECTRIC: u32 = 2u;
+const ROUGH_CONDUCTOR: u32 = 3u;
+const PLASTIC: u32 = 4u;
+const ROUGH_PLASTIC: u32 = 5u;
+const PHONG: u32 = 6u;
+const ROUGH_DIFFUSE: u32 = 7u;
+
+const TWO_SIDED: u32 = 1u;
+const BECKMANN: u32 = 2u;     // microfacets: Beckmann, else GGX
+const NONLINEAR: u32 = 4u;    // plastics: Mitsuba's `nonlinear` internal scattering
 
 struct Emitter {
-    radiance: vec3<f32>,
-    tri: u32,
+    radiance: vec3<f32>,   // area lights: radiance; point and spot lights: intensity
+    tri: u32,              // area lights: the triangle; NONE for point and spot lights
+    position: vec3<f32>,   // point and spot lights
     cdf: f32,              // inclusive cumulative pick probability
-    pick: f32,             // probability of picking this triangle
-    area: f32,
-    pad: u32,
+    axis: vec3<f32>,       // spot lights: the beam's axis
+    pick: f32,             // probability of picking this emitter
+    area: f32,             // area lights: the triangle's area
+    cos_cutoff: f32,       // spot lights: where the beam ends (−1: a point light)
+    cutoff: f32,           // spot lights: the falloff's angles, radians
+    beam_width: f32,
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
@@ -85,6 +100,7 @@ struct Emitter {
 @group(0) @binding(7) var<storage, read> normals: array<vec4<f32>>;         // 3 per triangle
 // Binding 8, the light pass's splats (rgb per pixel), and `splat_add` are in splat_*.wgsl.
 @group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>, 2>;  // rays: low, high
+@group(0) @binding(10) var<storage, read> data: array<f32>;                  // BSDF tables
 
 // Rays this thread traced since it last counted them (for `bench render --device gpu`).
 var<private> rays: u32;
@@ -239,24 +255,6 @@ fn shading_normal(k: u32, t: Tri, ng: vec3<f32>, b: vec2<f32>) -> vec3<f32> {
     return select(ng, n * inverseSqrt(len2), len2 > 0.0);
 }
 
-// Picks an emitting triangle by its cumulative probabilities.
-fn pick_emitter(u: f32) -> u32 {
-    var lo = 0u;
-    var hi = P.emitters - 1u;
-    loop {
-        if (lo >= hi) {
-            break;
-        }
-        let mid = (lo + hi) / 2u;
-        if (u < emitters[mid].cdf) {
-            hi = mid;
-        } else {
-            lo = mid + 1u;
-        }
-    }
-    return lo;
-}
-
 // By the bits: compilers may assume floats are never NaN.
 fn finite(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
@@ -285,26 +283,6 @@ fn film_area() -> f32 {
     return 4.0 * P.tan_half.x * P.tan_half.y;
 }
 
-// A point on an emitting triangle, chosen by power then uniformly by area.
-struct LightPoint {
-    e: Emitter,
-    q: vec3<f32>,
-    ng: vec3<f32>,         // geometric normal
-    ns: vec3<f32>,         // shading normal: the side that emits
-}
-
-fn sample_light_point() -> LightPoint {
-    let e = emitters[pick_emitter(rnd())];
-    let t = tris[e.tri];
-    var u = vec2<f32>(rnd(), rnd());
-    if (u.x + u.y > 1.0) {
-        u = vec2<f32>(1.0 - u.x, 1.0 - u.y);
-    }
-    let q = t.v0 + (t.v1 - t.v0) * u.x + (t.v2 - t.v0) * u.y;
-    let ng = normalize(cross(t.v1 - t.v0, t.v2 - t.v0));
-    return LightPoint(e, q, ng, shading_normal(e.tri, t, ng, u));
-}
-
 // Where a ray hit: the point, its normals, and the normal on the side it arrived from (the
 // shading normal, flipped for two-sided materials). `front` is false where a one-sided
 // material was hit from behind (black).
@@ -324,97 +302,8 @@ fn surface_at(o: vec3<f32>, d: vec3<f32>, h: Hit) -> Surface {
     let ns = shading_normal(h.tri, tri, ng, h.b);
     let m = materials[tri.material];
     let facing = dot(ns, d) < 0.0;
-    let two_sided = (m.flags & 1u) != 0u;
+    let two_sided = (m.flags & TWO_SIDED) != 0u;
     return Surface(o + d * h.t, ng, ns, select(-ns, ns, facing), facing || two_sided, m, tri.emitter);
-}
-
-// The BSDFs. `n` is the shading normal on the side the walk arrived from (s.n); only the
-// diffuse BSDF has values and densities, the others are specular (sampled only).
-// f·cos towards `wo`:
-fn bsdf_fcos(m: Material, n: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
-    if (m.kind != DIFFUSE) {
-        return vec3<f32>(0.0);
-    }
-    return m.reflectance * (INV_PI * max(dot(n, wo), 0.0));
-}
-
-// The density of sampling `wo` (per solid angle); 0 for specular BSDFs.
-fn bsdf_pdf(m: Material, n: vec3<f32>, wo: vec3<f32>) -> f32 {
-    if (m.kind != DIFFUSE) {
-        return 0.0;
-    }
-    return max(dot(n, wo), 0.0) * INV_PI;
-}
-
-struct BsdfSample {
-    wo: vec3<f32>,
-    weight: vec3<f32>,     // f·cos / density
-    pdf: f32,              // 0 for specular
-    ok: bool,
-}
-
-fn fresnel_dielectric(cos_in: f32, eta_in: f32) -> f32 {
-    let inside = cos_in < 0.0;
-    let cos_i = abs(cos_in);
-    let eta = select(eta_in, 1.0 / eta_in, inside);
-    let sin2_t = max(1.0 - cos_i * cos_i, 0.0) / (eta * eta);
-    if (sin2_t >= 1.0) {
-        return 1.0;
-    }
-    let cos_t = sqrt(max(1.0 - sin2_t, 0.0));
-    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    return 0.5 * (r_parl * r_parl + r_perp * r_perp);
-}
-
-fn fresnel_conductor_channel(cos_i: f32, eta_r: f32, eta_i: f32) -> f32 {
-    let c2 = cos_i * cos_i;
-    let s2 = 1.0 - c2;
-    let t1 = eta_r * eta_r - eta_i * eta_i - s2;
-    let a2pb2 = sqrt(max(t1 * t1 + 4.0 * eta_i * eta_i * eta_r * eta_r, 0.0));
-    let a = sqrt(max(0.5 * (a2pb2 + t1), 0.0));
-    let term1 = a2pb2 + c2;
-    let term2 = 2.0 * cos_i * a;
-    let rs = (term1 - term2) / (term1 + term2);
-    let term3 = a2pb2 * c2 + s2 * s2;
-    let term4 = term2 * s2;
-    let rp = rs * (term3 - term4) / (term3 + term4);
-    return clamp(0.5 * (rs + rp), 0.0, 1.0);
-}
-
-// Samples the BSDF at `s` for a walk arriving from direction `wi` (pointing away from the
-// surface). `radiance`: the camera's walk (a dielectric compresses radiance by 1/η² where
-// it enters a denser medium; importance is not compressed), as the CPU's TransportMode.
-fn bsdf_sample(s: Surface, wi: vec3<f32>, radiance: bool) -> BsdfSample {
-    let m = s.material;
-    if (m.kind == CONDUCTOR) {
-        let c = dot(s.n, wi);
-        let f = vec3<f32>(fresnel_conductor_channel(c, m.eta.x, m.k.x), fresnel_conductor_channel(c, m.eta.y, m.k.y),
-                          fresnel_conductor_channel(c, m.eta.z, m.k.z));
-        return BsdfSample(2.0 * c * s.n - wi, f * m.reflectance, 0.0, c > 0.0);
-    }
-    if (m.kind == DIELECTRIC) {
-        // In the unflipped shading frame: cos_i < 0 means arriving from inside.
-        let cos_i = dot(s.ns, wi);
-        let r = fresnel_dielectric(cos_i, m.eta.x);
-        if (rnd() < r) {
-            return BsdfSample(2.0 * cos_i * s.ns - wi, m.reflectance, 0.0, true);
-        }
-        let inside = cos_i < 0.0;
-        let eta = select(m.eta.x, 1.0 / m.eta.x, inside);
-        let n = select(s.ns, -s.ns, inside);
-        let c = abs(cos_i);
-        let sin2_t = max(1.0 - c * c, 0.0) / (eta * eta);
-        if (sin2_t >= 1.0) {
-            return BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false);
-        }
-        let wo = -wi / eta + n * (c / eta - sqrt(1.0 - sin2_t));
-        let scale = select(1.0, 1.0 / (eta * eta), radiance);
-        return BsdfSample(wo, m.transmittance * scale, 0.0, true);
-    }
-    // Diffuse: by the cosine, f·cos/p = reflectance.
-    let local = cosine_hemisphere(vec2<f32>(rnd(), rnd()));
-    return BsdfSample(frame(s.n) * local, m.reflectance, local.z * INV_PI, local.z > 0.0);
 }
 
 // Light transport's adjoint BSDF with shading normals (Veach's correction, as the CPU's

@@ -8,6 +8,7 @@ use bytemuck::{Pod, Zeroable};
 use skelight::color::Rgb;
 use skelight::film::Filter;
 use skelight::light::Light;
+use skelight::material::microfacet::{Microfacet, MicrofacetType};
 use skelight::material::Bsdf;
 use skelight::math::{vec3, Vec3};
 use skelight::scene::Scene;
@@ -44,40 +45,66 @@ pub struct Tri {
 pub const DIFFUSE: u32 = 0;
 pub const CONDUCTOR: u32 = 1;
 pub const DIELECTRIC: u32 = 2;
+pub const ROUGH_CONDUCTOR: u32 = 3;
+pub const PLASTIC: u32 = 4;
+pub const ROUGH_PLASTIC: u32 = 5;
+pub const PHONG: u32 = 6;
+pub const ROUGH_DIFFUSE: u32 = 7;
+
+/// Material flags.
+pub const TWO_SIDED: u32 = 1;
+pub const BECKMANN: u32 = 2;
+pub const NONLINEAR: u32 = 4;
 
 #[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, Default, PartialEq)]
 pub struct Material {
     /// Diffuse reflectance, or the specular reflectance of a conductor or dielectric.
     pub reflectance: [f32; 3],
-    /// 1: two-sided.
+    /// [`TWO_SIDED`], [`BECKMANN`], [`NONLINEAR`].
     pub flags: u32,
-    /// A conductor's η per channel; a dielectric's interior over exterior index in x.
+    /// A conductor's η per channel; a dielectric's interior over exterior index in x; a
+    /// plastic's (η, internal diffuse reflectance, specular sampling weight); Phong's
+    /// specular sampling weight in x.
     pub eta: [f32; 3],
     pub kind: u32,
     /// A conductor's absorption k per channel.
     pub k: [f32; 3],
-    pub pad0: u32,
-    /// A dielectric's specular transmittance.
+    /// Microfacet roughness α, Phong's exponent, Oren–Nayar's σ.
+    pub alpha: f32,
+    /// A dielectric's specular transmittance; a plastic's or Phong's specular reflectance.
     pub transmittance: [f32; 3],
-    pub pad1: u32,
+    /// A rough plastic's transmittance table: its first entry in [`Flat::data`].
+    pub table: u32,
 }
 
 impl Material {
-    fn diffuse(reflectance: [f32; 3], flags: u32) -> Material {
-        Material { reflectance, flags, ..Material::default() }
+    fn diffuse(reflectance: [f32; 3]) -> Material {
+        Material { reflectance, ..Material::default() }
     }
 }
 
+/// An emitting triangle, or a point or spot light (`tri` = [`NONE`]; a point light is a spot
+/// whose cone is the whole sphere, `cos_cutoff` = −1).
 #[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable, Debug)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
 pub struct Emitter {
+    /// Radiance of an area light, intensity of a point or spot light.
     pub radiance: [f32; 3],
     pub tri: u32,
+    pub position: [f32; 3],
+    /// Inclusive cumulative pick probability.
     pub cdf: f32,
+    /// A spot's beam axis.
+    pub axis: [f32; 3],
+    /// Probability of picking this emitter (by power).
     pub pick: f32,
+    /// An emitting triangle's area.
     pub area: f32,
-    pub pad: u32,
+    pub cos_cutoff: f32,
+    /// A spot's falloff angles (radians).
+    pub cutoff: f32,
+    pub beam_width: f32,
 }
 
 /// The kernels' uniform block (`Params` in common.wgsl), 192 bytes.
@@ -117,56 +144,114 @@ pub struct Flat {
     pub normals: Vec<[f32; 4]>,
     pub materials: Vec<Material>,
     pub emitters: Vec<Emitter>,
+    /// Tables the BSDFs read (rough plastics' transmittance).
+    pub data: Vec<f32>,
     /// The camera and settings part of the uniform block (the rest is set per dispatch).
     pub params: Params,
 }
 
 /// What the GPU renders today; anything else is refused by [`flatten`].
-pub const FEATURES: &str = "diffuse BSDFs with constant reflectance (one- or two-sided), smooth \
-    conductors and smooth dielectrics with constant colours, emitters on triangle meshes (area \
-    lights), shading normals, pinhole cameras, the box filter; no alpha masks, exact spheres, \
-    textures, other BSDFs or other lights yet";
+pub const FEATURES: &str = "BSDFs diffuse, roughdiffuse, conductor, roughconductor, \
+    dielectric, plastic, roughplastic and phong with constant colours and isotropic roughness \
+    (one- or two-sided alike), area lights on triangle meshes, point and spot lights, shading normals, \
+    pinhole cameras, the box filter; no alpha masks, exact spheres, textures, bump maps, other \
+    BSDFs or other lights yet";
 
 fn unsupported(what: String) -> GpuError {
     GpuError::Unsupported(format!("{what}; the GPU renders {FEATURES}"))
 }
 
-/// The material's GPU form, or why it has none.
-fn material(bsdf: &Bsdf, name: &str) -> Result<Material, GpuError> {
+/// The material's GPU form and its table (rough plastics), or why it has none.
+fn material(bsdf: &Bsdf, name: &str) -> Result<(Material, Vec<f32>), GpuError> {
     let constant = |t: &Texture| match t {
         Texture::Constant(c) => Ok([c.r, c.g, c.b]),
-        _ => Err(unsupported(format!("material '{name}' has a textured reflectance"))),
+        _ => Err(unsupported(format!("material '{name}' has a texture"))),
     };
     let rgb = |c: Rgb| [c.r, c.g, c.b];
-    match bsdf {
-        Bsdf::Diffuse(d) => Ok(Material::diffuse(constant(&d.reflectance)?, 0)),
-        Bsdf::Black => Ok(Material::diffuse([0.0; 3], 0)),
-        Bsdf::Conductor(c) => Ok(Material {
+    // Isotropic microfacets only (the kernels' local frame has no tangent).
+    let microfacet = |d: &Microfacet| {
+        if d.alpha_u != d.alpha_v {
+            return Err(unsupported(format!("material '{name}' has anisotropic roughness")));
+        }
+        Ok((d.alpha_u, if d.kind == MicrofacetType::Beckmann { BECKMANN } else { 0 }))
+    };
+    let m = match bsdf {
+        Bsdf::Diffuse(d) => Material::diffuse(constant(&d.reflectance)?),
+        Bsdf::Black => Material::diffuse([0.0; 3]),
+        Bsdf::RoughDiffuse(d) => {
+            Material { kind: ROUGH_DIFFUSE, alpha: d.alpha, ..Material::diffuse(constant(&d.reflectance)?) }
+        }
+        Bsdf::Conductor(c) => Material {
             reflectance: constant(&c.specular_reflectance)?,
             eta: rgb(c.eta),
             k: rgb(c.k),
             kind: CONDUCTOR,
             ..Material::default()
-        }),
+        },
+        Bsdf::RoughConductor(c) => {
+            let (alpha, flags) = microfacet(&c.distribution)?;
+            Material {
+                reflectance: constant(&c.specular_reflectance)?,
+                eta: rgb(c.eta),
+                k: rgb(c.k),
+                kind: ROUGH_CONDUCTOR,
+                alpha,
+                flags,
+                ..Material::default()
+            }
+        }
         // Light crosses a dielectric from either side.
-        Bsdf::Dielectric(d) => Ok(Material {
+        Bsdf::Dielectric(d) => Material {
             reflectance: rgb(d.specular_reflectance),
             transmittance: rgb(d.specular_transmittance),
             eta: [d.eta, 0.0, 0.0],
             kind: DIELECTRIC,
-            flags: 1,
+            flags: TWO_SIDED,
             ..Material::default()
-        }),
-        Bsdf::TwoSided(front, back) => match (front.as_ref(), back.as_ref()) {
-            (Bsdf::Diffuse(f), Bsdf::Diffuse(b)) if constant(&f.reflectance)? == constant(&b.reflectance)? => {
-                Ok(Material::diffuse(constant(&f.reflectance)?, 1))
-            }
-            _ => Err(unsupported(format!(
-                "material '{name}' is two-sided with other than the same diffuse on both sides"
-            ))),
         },
-        other => Err(unsupported(format!("material '{name}' is {}", bsdf_name(other)))),
-    }
+        Bsdf::Plastic(_) | Bsdf::RoughPlastic(_) => {
+            let p = match bsdf {
+                Bsdf::Plastic(p) => p.parts(),
+                Bsdf::RoughPlastic(p) => p.parts(),
+                _ => unreachable!(),
+            };
+            let (alpha, mut flags) = match &p.distribution {
+                Some(d) => microfacet(d)?,
+                None => (0.0, 0),
+            };
+            if p.nonlinear {
+                flags |= NONLINEAR;
+            }
+            let material = Material {
+                reflectance: constant(p.diffuse)?,
+                transmittance: constant(p.specular)?,
+                eta: [p.eta, p.internal_reflectance, p.specular_weight],
+                kind: if p.distribution.is_some() { ROUGH_PLASTIC } else { PLASTIC },
+                alpha,
+                flags,
+                ..Material::default()
+            };
+            return Ok((material, p.external_transmittance.to_vec()));
+        }
+        Bsdf::Phong(p) => Material {
+            reflectance: constant(&p.diffuse)?,
+            transmittance: constant(&p.specular)?,
+            eta: [p.specular_weight, 0.0, 0.0],
+            alpha: p.exponent,
+            kind: PHONG,
+            ..Material::default()
+        },
+        // The same BSDF on both sides (the back mirrored) is that BSDF, two-sided.
+        Bsdf::TwoSided(front, back) => {
+            let (f, table) = material(front, name)?;
+            if material(back, name)? != (f, table.clone()) || f.kind == DIELECTRIC {
+                return Err(unsupported(format!("material '{name}' is two-sided with different BSDFs on its sides")));
+            }
+            return Ok((Material { flags: f.flags | TWO_SIDED, ..f }, table));
+        }
+        other => return Err(unsupported(format!("material '{name}' is {}", bsdf_name(other)))),
+    };
+    Ok((m, Vec::new()))
 }
 
 fn bsdf_name(b: &Bsdf) -> &'static str {
@@ -197,21 +282,57 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     if cam.aperture_radius > 0.0 {
         return Err(unsupported("the camera is a thin lens".into()));
     }
+    // Point and spot lights; area lights come with their meshes' triangles below.
+    let mut emitters = Vec::new();
+    let mut power = Vec::new();
     for light in &scene.lights {
-        if !matches!(light, Light::Area(_)) {
-            return Err(unsupported("the scene has a light other than an area light".into()));
-        }
-    }
-    let materials = scene
-        .materials
-        .iter()
-        .map(|m| {
-            if m.perturbation.is_some() {
-                return Err(unsupported(format!("material '{}' has a bump or normal map", m.name)));
+        let rgb = |c: Rgb| [c.r, c.g, c.b];
+        let p = |v: Vec3| [v.x, v.y, v.z];
+        let (emitter, solid_angle) = match *light {
+            Light::Area(_) => continue,
+            Light::Point { position, intensity } => {
+                let e = Emitter {
+                    radiance: rgb(intensity),
+                    position: p(position),
+                    axis: [0.0, 0.0, 1.0],
+                    cos_cutoff: -1.0,
+                    ..Emitter::default()
+                };
+                (e, 4.0 * std::f64::consts::PI)
             }
-            material(&m.bsdf, &m.name)
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+            Light::Spot { position, frame, intensity, cos_cutoff, cutoff, beam_width } => {
+                let e = Emitter {
+                    radiance: rgb(intensity),
+                    position: p(position),
+                    axis: p(frame.n),
+                    cos_cutoff,
+                    cutoff,
+                    beam_width,
+                    ..Emitter::default()
+                };
+                (e, 2.0 * std::f64::consts::PI * (1.0 - cos_cutoff as f64))
+            }
+            _ => return Err(unsupported("the scene has a directional or environment light".into())),
+        };
+        emitters.push(Emitter { tri: NONE, ..emitter });
+        power.push(
+            solid_angle
+                * Rgb { r: emitter.radiance[0], g: emitter.radiance[1], b: emitter.radiance[2] }.luminance() as f64,
+        );
+    }
+    let mut materials = Vec::new();
+    let mut data = Vec::new();
+    for m in &scene.materials {
+        if m.perturbation.is_some() {
+            return Err(unsupported(format!("material '{}' has a bump or normal map", m.name)));
+        }
+        let (mut flat, table) = material(&m.bsdf, &m.name)?;
+        if !table.is_empty() {
+            flat.table = data.len() as u32;
+            data.extend(table);
+        }
+        materials.push(flat);
+    }
     let mut tris = Vec::new();
     let mut normals = Vec::new();
     let mut emitting: Vec<(u32, Rgb, f32)> = Vec::new();
@@ -227,7 +348,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
             let area = 0.5 * (b - a).cross(c - a).length();
             let mut emitter = NONE;
             if let Some(l) = mesh.emission.filter(|l| l.max_component() > 0.0 && area > 0.0) {
-                emitter = emitting.len() as u32;
+                emitter = (emitters.len() + emitting.len()) as u32;
                 emitting.push((tris.len() as u32, l, area));
             }
             let p = |v: Vec3| [v.x, v.y, v.z];
@@ -242,19 +363,18 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     if tris.is_empty() {
         return Err(GpuError::Unsupported("the scene has no triangles".into()));
     }
-    // Emitting triangles by power (area × luminance of their radiance).
-    let power: Vec<f64> = emitting.iter().map(|(_, l, a)| *a as f64 * l.luminance() as f64).collect();
+    // Emitting triangles by power (π × area × luminance of their radiance), after the others.
+    for &(tri, radiance, area) in &emitting {
+        power.push(std::f64::consts::PI * area as f64 * radiance.luminance() as f64);
+        emitters.push(Emitter { radiance: [radiance.r, radiance.g, radiance.b], tri, area, ..Emitter::default() });
+    }
     let total: f64 = power.iter().sum();
     let mut acc = 0.0;
-    let mut emitters: Vec<Emitter> = emitting
-        .iter()
-        .zip(&power)
-        .map(|(&(tri, radiance, area), &w)| {
-            acc += w;
-            let radiance = [radiance.r, radiance.g, radiance.b];
-            Emitter { radiance, tri, cdf: (acc / total) as f32, pick: (w / total) as f32, area, pad: 0 }
-        })
-        .collect();
+    for (e, &w) in emitters.iter_mut().zip(&power) {
+        acc += w;
+        e.cdf = (acc / total) as f32;
+        e.pick = (w / total) as f32;
+    }
     if let Some(last) = emitters.last_mut() {
         last.cdf = 1.0;
     }
@@ -268,7 +388,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     for (at, &i) in order.iter().enumerate() {
         position[i as usize] = at as u32;
     }
-    for e in &mut emitters {
+    for e in emitters.iter_mut().filter(|e| e.tri != NONE) {
         e.tri = position[e.tri as usize];
     }
     let v = |x: Vec3| [x.x, x.y, x.z, 0.0];
@@ -294,7 +414,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         emitters: emitters.len() as u32,
         ..Params::default()
     };
-    Ok(Flat { nodes, tris, normals, materials, emitters, params })
+    Ok(Flat { nodes, tris, normals, materials, emitters, data, params })
 }
 
 /// A binary BVH over `tris` by median splits along the longest axis of the centroids' box

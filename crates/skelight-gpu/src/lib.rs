@@ -41,7 +41,7 @@ const SAMPLES_PER_DISPATCH: u32 = 16;
 /// (a 10 % dark image at 16 samples per dispatch, exact at 4).
 const SAMPLES_PER_DISPATCH_CPU: u32 = 1;
 /// Storage buffers the kernels bind (scene: 5; film: sums, squares, splats; ray counters).
-const STORAGE_BUFFERS: u32 = 9;
+const STORAGE_BUFFERS: u32 = 10;
 /// Samples per pixel summed on the device (in f32) before the film takes them (in f64).
 const READBACK_BATCH: u32 = 16;
 /// Pixels along a tile's side: any resolution fits any device's dispatch limits.
@@ -170,8 +170,14 @@ impl GpuRenderer {
             .map_err(|e| GpuError::Device(e.to_string()))?;
         // Splats add with float atomics where the adapter has them, else by compare and swap.
         let splat = if float_atomics { include_str!("splat_f32.wgsl") } else { include_str!("splat_cas.wgsl") };
-        let source =
-            [include_str!("common.wgsl"), splat, include_str!("camera_pass.wgsl"), include_str!("light_pass.wgsl")];
+        let source = [
+            include_str!("common.wgsl"),
+            include_str!("light.wgsl"),
+            include_str!("bsdf.wgsl"),
+            splat,
+            include_str!("camera_pass.wgsl"),
+            include_str!("light_pass.wgsl"),
+        ];
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("skelight kernels"),
             source: wgpu::ShaderSource::Wgsl(source.concat().into()),
@@ -198,6 +204,7 @@ impl GpuRenderer {
                 binding(7, read),
                 binding(8, write),
                 binding(9, write),
+                binding(10, read),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -257,6 +264,7 @@ impl GpuRenderer {
             std::mem::size_of_val(flat.materials.as_slice()),
             std::mem::size_of_val(flat.emitters.as_slice()),
             std::mem::size_of_val(flat.normals.as_slice()),
+            std::mem::size_of_val(flat.data.as_slice()),
         ]
         .iter()
         .sum::<usize>() as u64;
@@ -265,12 +273,24 @@ impl GpuRenderer {
         let materials = storage(&device, "materials", bytemuck::cast_slice(&flat.materials));
         let emitters = storage(&device, "emitters", bytemuck::cast_slice(&flat.emitters));
         let normals = storage(&device, "normals", bytemuck::cast_slice(&flat.normals));
-        let entries: Vec<wgpu::BindGroupEntry> =
-            [&params_buffer, &nodes, &tris, &materials, &emitters, &sums, &squares, &normals, &splats, &counters]
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
-                .collect();
+        let data = storage(&device, "data", bytemuck::cast_slice(&flat.data));
+        let entries: Vec<wgpu::BindGroupEntry> = [
+            &params_buffer,
+            &nodes,
+            &tris,
+            &materials,
+            &emitters,
+            &sums,
+            &squares,
+            &normals,
+            &splats,
+            &counters,
+            &data,
+        ]
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+        .collect();
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("scene"),
             layout: &layout,

@@ -72,28 +72,30 @@ fn light_path(px: u32, py: u32, sample: u32) {
         return;
     }
     let lp = sample_light_point();
-    let l0 = lp.e.pick / lp.e.area;
+    let l0 = origin_density(lp);
     // The light point seen by the camera (k = 1): only the camera hitting it competes.
-    let view0 = lens_view(lp.q, lp.ng);
-    let cos_view = dot(lp.ns, view0.w);
-    if (view0.visible && cos_view > 0.0) {
-        let inv_w = 1.0 + sq(view0.c / l0);
-        splat(view0.pixel, lp.e.radiance * (abs(dot(lp.ng, view0.w)) / l0 * view0.importance / inv_w));
+    // Point-like lights cannot be seen (the CPU's connect_to_camera skips them too).
+    if (!lp.delta) {
+        let view0 = lens_view(lp.q, lp.ng);
+        if (view0.visible) {
+            let inv_w = 1.0 + sq(view0.c / l0);
+            splat(view0.pixel, emitted(lp, view0.w) * (abs(dot(lp.ng, view0.w)) / l0 * view0.importance / inv_w));
+        }
     }
-    // Emission by the cosine about the shading normal (the side that emits).
-    let local_wo = cosine_hemisphere(vec2<f32>(rnd(), rnd()));
-    let d0 = frame(lp.ns) * local_wo;
-    if (local_wo.z <= 0.0) {
+    let emission = sample_emission(lp);
+    let d0 = emission.xyz;
+    var pdf_dir = emission.w;
+    // Radiance × |cos_g| over the densities of the point and the direction.
+    var beta = emitted(lp, d0) * (light_cos(lp, d0) / (l0 * pdf_dir));
+    if (!(pdf_dir > 0.0) || !(max(beta.x, max(beta.y, beta.z)) > 0.0)) {
         return;
     }
-    var pdf_dir = local_wo.z * INV_PI;
-    // Radiance × |cos_g| over the densities of the point and the direction.
-    var beta = lp.e.radiance * (abs(dot(lp.ng, d0)) / (l0 * pdf_dir));
     var o = spawn(lp.q, lp.ng, d0);
     var d = d0;
     var prev_p = lp.q;
     // MIS state: the product over x_1 … x_{j−2}, x_{j−1}'s light-side density and geometric
-    // normal (for its camera-side density per unit area), the origin's term.
+    // normal (for its camera-side density per unit area; zero at a point-like light, which
+    // the camera cannot hit), the origin's term.
     var prod = 1.0;
     var l_prev = l0;
     var n_prev = lp.ng;
@@ -119,10 +121,10 @@ fn light_path(px: u32, py: u32, sample: u32) {
         if (P.max_depth < 0 || j + 1 <= P.max_depth) {
             let view = lens_view(s.p, s.ng);
             if (view.visible) {
-                let fcos = bsdf_fcos(s.material, s.n, view.w) * adjoint_correction(s, wi, view.w);
+                let fcos = bsdf_eval(s, wi, view.w) * adjoint_correction(s, wi, view.w);
                 if (max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
                     // x_{j−1}'s camera-side density: x_j's BSDF sampled from the lens's side.
-                    let c_prev = bsdf_pdf(s.material, s.n, wi) * cos_prev / dist2;
+                    let c_prev = bsdf_pdf(s, view.w, wi) * cos_prev / dist2;
                     var inv_w = 1.0;
                     if (j == 1) {
                         inv_w = 1.0 + sq(view.c / l_here) * (1.0 + sq(c_prev / l0));
@@ -147,10 +149,12 @@ fn light_path(px: u32, py: u32, sample: u32) {
             break;
         }
         let delta = bs.pdf == 0.0;
-        // x_{j−1}'s camera-side density: x_j's BSDF sampled from wo towards it.
-        let c_prev = bsdf_pdf(s.material, s.n, wi) * cos_prev / dist2;
+        // x_{j−1}'s camera-side density: x_j's BSDF sampled from wo towards it (0 through a
+        // delta lobe).
+        let c_prev = select(bsdf_pdf(s, wo, wi), 0.0, delta) * cos_prev / dist2;
         if (j == 1) {
-            origin = select(1.0, 0.0, delta) + sq(remap(c_prev) / l0);
+            // Next-event estimation needs x_1 not specular; the camera hitting x_0, an area light.
+            origin = select(1.0, 0.0, delta) + select(sq(remap(c_prev) / l0), 0.0, lp.delta);
         } else {
             prod = prod * sq(remap(c_prev) / remap(l_prev));
         }

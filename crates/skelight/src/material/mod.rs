@@ -18,7 +18,7 @@ pub use conductor::{Conductor, RoughConductor};
 pub use dielectric::{Dielectric, RoughDielectric, ThinDielectric};
 pub use diffuse::{Diffuse, RoughDiffuse};
 pub use phong::Phong;
-pub use plastic::{Plastic, RoughPlastic};
+pub use plastic::{Plastic, PlasticParts, RoughPlastic, TABLE_SIZE as PLASTIC_TABLE_SIZE};
 pub use ward::{Ward, WardVariant};
 
 use crate::color::Rgb;

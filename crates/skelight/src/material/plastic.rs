@@ -113,7 +113,60 @@ impl BsdfModel for Plastic {
     }
 }
 
-const TABLE_SIZE: usize = 64;
+/// A plastic's parameters as its model uses them, for renderers that re-implement it (the
+/// GPU's flattening).
+#[derive(Clone, Copy, Debug)]
+pub struct PlasticParts<'a> {
+    pub diffuse: &'a Texture,
+    pub specular: &'a Texture,
+    pub eta: f32,
+    pub nonlinear: bool,
+    /// Diffuse reflectance of the interface seen from inside.
+    pub internal_reflectance: f32,
+    /// Fraction of samples sent to the specular lobe before Fresnel.
+    pub specular_weight: f32,
+    /// The rough interface's microfacets (`None`: smooth).
+    pub distribution: Option<Microfacet>,
+    /// The rough interface's transmittance over cosθ in [0, 1], [`TABLE_SIZE`] entries (empty: smooth).
+    pub external_transmittance: &'a [f32],
+}
+
+impl DiffuseBase {
+    fn parts<'a>(
+        &'a self,
+        specular: &'a Texture,
+        (eta, specular_weight): (f32, f32),
+        distribution: Option<Microfacet>,
+        external_transmittance: &'a [f32],
+    ) -> PlasticParts<'a> {
+        PlasticParts {
+            diffuse: &self.diffuse,
+            specular,
+            eta,
+            nonlinear: self.nonlinear,
+            internal_reflectance: self.internal_reflectance,
+            specular_weight,
+            distribution,
+            external_transmittance,
+        }
+    }
+}
+
+impl Plastic {
+    pub fn parts(&self) -> PlasticParts<'_> {
+        self.base.parts(&self.specular_reflectance, (self.eta, self.specular_weight), None, &[])
+    }
+}
+
+impl RoughPlastic {
+    pub fn parts(&self) -> PlasticParts<'_> {
+        let spec = &self.specular_reflectance;
+        self.base.parts(spec, (self.eta, self.specular_weight), Some(self.distribution), &self.external_transmittance)
+    }
+}
+
+/// Entries of a rough plastic's transmittance table.
+pub const TABLE_SIZE: usize = 64;
 
 #[derive(Clone, Debug)]
 pub struct RoughPlastic {
