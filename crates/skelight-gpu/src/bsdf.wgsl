@@ -166,6 +166,35 @@ fn phong_lobe_pdf(m: Material, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     return select(0.0, (m.alpha + 1.0) * 0.5 * INV_PI * pow(c, m.alpha), c > 0.0);
 }
 
+// ---- A smooth dielectric coating over a diffuse base (coating.rs) ----
+// η in eta.x, the specular sampling weight in eta.z, the coat's specular reflectance in
+// `transmittance`, absorption × thickness in `k`.
+
+// The direction inside the layer for an outside direction (same azimuth, upper side).
+fn coat_in(m: Material, w: vec3<f32>) -> vec3<f32> {
+    let inv = 1.0 / m.eta.x;
+    let sin2 = max(1.0 - w.z * w.z, 0.0) * inv * inv;
+    return vec3<f32>(inv * w.x, inv * w.y, sqrt(max(1.0 - sin2, 0.0)));
+}
+
+// The outside direction of a direction inside the layer; z < 0 where it is totally reflected.
+fn coat_out(m: Material, w: vec3<f32>) -> vec3<f32> {
+    let sin2 = max(1.0 - w.z * w.z, 0.0) * m.eta.x * m.eta.x;
+    if (sin2 >= 1.0) {
+        return vec3<f32>(0.0, 0.0, -1.0);
+    }
+    return vec3<f32>(m.eta.x * w.x, m.eta.x * w.y, sqrt(1.0 - sin2));
+}
+
+fn coat_absorption(m: Material, wi_in: vec3<f32>, wo_in: vec3<f32>) -> vec3<f32> {
+    return exp(-m.k * (1.0 / abs(wi_in.z) + 1.0 / abs(wo_in.z)));
+}
+
+// The solid-angle Jacobian of refraction out of the layer, over η².
+fn coat_jacobian(m: Material, wo: vec3<f32>, wo_in: vec3<f32>) -> f32 {
+    return wo.z / (m.eta.x * m.eta.x * wo_in.z);
+}
+
 // ---- The BSDF interface, in the local frame ----
 
 fn eval_local(m: Material, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
@@ -213,6 +242,12 @@ fn eval_local(m: Material, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
             return m.transmittance * spec
                 + plastic_base(m, wo, rough_transmittance(m, wi.z), rough_transmittance(m, wo.z));
         }
+        case COATED_DIFFUSE: {
+            let wi_in = coat_in(m, wi);
+            let wo_in = coat_in(m, wo);
+            let t = (1.0 - fresnel_dielectric(wi.z, m.eta.x)) * (1.0 - fresnel_dielectric(wo.z, m.eta.x));
+            return m.reflectance * (INV_PI * wo_in.z * t * coat_jacobian(m, wo, wo_in)) * coat_absorption(m, wi_in, wo_in);
+        }
         case PHONG: {
             let c = dot(vec3<f32>(-wi.x, -wi.y, wi.z), wo);
             var f = m.reflectance * INV_PI;
@@ -248,6 +283,11 @@ fn pdf_local(m: Material, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
         }
         case PHONG: {
             return m.eta.x * phong_lobe_pdf(m, wi, wo) + (1.0 - m.eta.x) * cosine;
+        }
+        case COATED_DIFFUSE: {
+            let ps = specular_probability(fresnel_dielectric(wi.z, m.eta.x), m.eta.z);
+            let wo_in = coat_in(m, wo);
+            return (1.0 - ps) * wo_in.z * INV_PI * coat_jacobian(m, wo, wo_in);
         }
         default: {
             return 0.0;
@@ -351,6 +391,16 @@ fn bsdf_sample(s: Surface, wi_world: vec3<f32>, radiance: bool) -> BsdfSample {
                 return weighted_sample(s, wi, reflect_about(wi, mf_sample(m, wi, u2)));
             }
             return weighted_sample(s, wi, cosine_hemisphere(u2));
+        }
+        case COATED_DIFFUSE: {
+            let r = fresnel_dielectric(wi.z, m.eta.x);
+            let ps = specular_probability(r, m.eta.z);
+            if (u < ps) {
+                let wo = vec3<f32>(-wi.x, -wi.y, wi.z);
+                return BsdfSample(frame(s.n) * wo, m.transmittance * (r / ps), 0.0, true);
+            }
+            // The base's cosine lobe inside the layer, refracted out.
+            return weighted_sample(s, wi, coat_out(m, cosine_hemisphere(u2)));
         }
         case PHONG: {
             if (u < m.eta.x) {

@@ -12,13 +12,12 @@
 // next-event estimation L_0/C_0 (x_1 not specular), light tracing Π_{i<k} L_i/C_i (x_{k−1}
 // not specular); the light hitting a pinhole has density 0.
 
-fn camera_radiance(px: u32, py: u32, sample: u32) -> vec3<f32> {
-    seed_rng(px, py, sample, 0u);
+// Radiance along the camera ray through film position `pos` (pixels); the generator seeded.
+fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
     if (P.max_depth == 0) {
         return vec3<f32>(0.0);   // no segment at all: black, as the CPU
     }
     let bidir = P.bidirectional != 0u;
-    let pos = vec2<f32>(f32(px) + rnd(), f32(py) + rnd());
     let local = vec3<f32>((1.0 - 2.0 * pos.x / f32(P.width)) * P.tan_half.x,
                           (1.0 - 2.0 * pos.y / f32(P.height)) * P.tan_half.y, 1.0);
     let to_world = mat3x3<f32>(P.cam_x.xyz, P.cam_y.xyz, P.cam_z.xyz);
@@ -165,11 +164,17 @@ fn camera_main(@builtin(global_invocation_id) id: vec3<u32>) {
     var sum = sums[i];
     var sq_sum = squares[i];
     for (var k = 0u; k < P.samples; k = k + 1u) {
-        let l = camera_radiance(px, py, P.first_sample + k);
+        seed_rng(px, py, P.first_sample + k, 0u);
+        let pos = vec2<f32>(f32(px) + rnd(), f32(py) + rnd());
+        let l = camera_radiance(pos);
         // Non-finite samples are rejected and counted, as on the CPU.
         if (finite(l.x) && finite(l.y) && finite(l.z)) {
-            sum = sum + vec4<f32>(l, 1.0);
-            sq_sum = sq_sum + vec4<f32>(l * l, 0.0);
+            if (P.filter_radius > 0.0) {
+                film_add(pos, l, true);
+            } else {
+                sum = sum + vec4<f32>(l, 1.0);
+                sq_sum = sq_sum + vec4<f32>(l * l, 0.0);
+            }
         } else {
             sq_sum.w = sq_sum.w + 1.0;
         }

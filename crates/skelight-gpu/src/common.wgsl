@@ -16,7 +16,7 @@ struct Params {
     forward: vec4<f32>,    // unit viewing direction
     tan_half: vec2<f32>,
     near_clip: f32,
-    eps_scale: f32,        // self-intersection offset per unit of coordinate magnitude
+    eps_scale: f32,        // self-intersection offset per unit of (1 + coordinate magnitude)
     width: u32,
     height: u32,
     seed_lo: u32,
@@ -29,6 +29,10 @@ struct Params {
     x0: u32,               // the tile this dispatch covers
     y0: u32,
     bidirectional: u32,    // 1: instant BPT (the camera pass weighs against light tracing too)
+    filter_radius: f32,    // the tent filter's radius (pixels); 0: the box filter
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 struct Node {
@@ -62,6 +66,10 @@ struct Material {
     alpha: f32,                // microfacet roughness, Phong exponent, Oren–Nayar σ
     transmittance: vec3<f32>,  // dielectric: transmittance; plastic, Phong: specular reflectance
     table: u32,                // rough plastic: where its transmittance table starts in `data`
+    texture: u32,              // the texture of `reflectance` (a descriptor in `data`), or NONE
+    bump: u32,                 // a bump map's height texture, or NONE
+    bump_scale: f32,
+    pad: u32,
 }
 
 const DIFFUSE: u32 = 0u;
@@ -72,6 +80,7 @@ const PLASTIC: u32 = 4u;
 const ROUGH_PLASTIC: u32 = 5u;
 const PHONG: u32 = 6u;
 const ROUGH_DIFFUSE: u32 = 7u;
+const COATED_DIFFUSE: u32 = 8u;
 
 const TWO_SIDED: u32 = 1u;
 const BECKMANN: u32 = 2u;     // microfacets: Beckmann, else GGX
@@ -97,10 +106,11 @@ struct Emitter {
 @group(0) @binding(4) var<storage, read> emitters: array<Emitter>;
 @group(0) @binding(5) var<storage, read_write> sums: array<vec4<f32>>;      // rgb, samples
 @group(0) @binding(6) var<storage, read_write> squares: array<vec4<f32>>;   // rgb², rejected
-@group(0) @binding(7) var<storage, read> normals: array<vec4<f32>>;         // 3 per triangle
+// Six per triangle: its vertices' normals with their u in w, their three v, dp/du, dp/dv.
+@group(0) @binding(7) var<storage, read> attributes: array<vec4<f32>>;
 // Binding 8, the light pass's splats (rgb per pixel), and `splat_add` are in splat_*.wgsl.
 @group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>, 2>;  // rays: low, high
-@group(0) @binding(10) var<storage, read> data: array<f32>;                  // BSDF tables
+@group(0) @binding(10) var<storage, read> data: array<f32>;                  // textures, tables
 
 // Rays this thread traced since it last counted them (for `bench render --device gpu`).
 var<private> rays: u32;
@@ -238,9 +248,11 @@ fn power(a: f32, b: f32) -> f32 {
     return 0.0;
 }
 
-// A ray's origin leaving the surface at `p` (geometric normal `ng`) towards `dir`.
+// A ray's origin leaving the surface at `p` (geometric normal `ng`) towards `dir`: offset by
+// (1 + max|p|) × eps_scale, the CPU's ray_epsilon (f32 intersection error grows with the
+// coordinates' magnitude).
 fn spawn(p: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
-    let m = max(max(abs(p.x), abs(p.y)), max(abs(p.z), 1.0));
+    let m = 1.0 + max(max(abs(p.x), abs(p.y)), abs(p.z));
     return p + ng * (select(-1.0, 1.0, dot(ng, dir) >= 0.0) * P.eps_scale * m);
 }
 
@@ -249,7 +261,8 @@ fn shading_normal(k: u32, t: Tri, ng: vec3<f32>, b: vec2<f32>) -> vec3<f32> {
     if ((t.flags & 1u) == 0u) {
         return ng;
     }
-    let n = normals[3u * k].xyz * (1.0 - b.x - b.y) + normals[3u * k + 1u].xyz * b.x + normals[3u * k + 2u].xyz * b.y;
+    let a = 6u * k;
+    let n = attributes[a].xyz * (1.0 - b.x - b.y) + attributes[a + 1u].xyz * b.x + attributes[a + 2u].xyz * b.y;
     // Opposite vertex normals can cancel: the geometric normal then, as the CPU.
     let len2 = dot(n, n);
     return select(ng, n * inverseSqrt(len2), len2 > 0.0);
@@ -299,11 +312,45 @@ struct Surface {
 fn surface_at(o: vec3<f32>, d: vec3<f32>, h: Hit) -> Surface {
     let tri = tris[h.tri];
     let ng = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
-    let ns = shading_normal(h.tri, tri, ng, h.b);
-    let m = materials[tri.material];
+    var ns = shading_normal(h.tri, tri, ng, h.b);
+    var m = materials[tri.material];
+    if (m.texture != NONE || m.bump != NONE) {
+        let uv = uv_at(h.tri, h.b);
+        if (m.texture != NONE) {
+            m.reflectance = texture_eval(m.texture, uv);
+        }
+        if (m.bump != NONE) {
+            ns = bumped(m, h.tri, ns, uv);
+        }
+    }
     let facing = dot(ns, d) < 0.0;
     let two_sided = (m.flags & TWO_SIDED) != 0u;
     return Surface(o + d * h.t, ng, ns, select(-ns, ns, facing), facing || two_sided, m, tri.emitter);
+}
+
+fn uv_at(k: u32, b: vec2<f32>) -> vec2<f32> {
+    let a = 6u * k;
+    let w = vec3<f32>(1.0 - b.x - b.y, b.x, b.y);
+    return vec2<f32>(dot(vec3<f32>(attributes[a].w, attributes[a + 1u].w, attributes[a + 2u].w), w),
+                     dot(attributes[a + 3u].xyz, w));
+}
+
+// A bump map's normal (the CPU's Perturbation::Bump): the height's uv gradient by central
+// differences tilts the surface spanned by dp/du and dp/dv, kept on the side of `n`.
+fn bumped(m: Material, k: u32, n: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
+    let h = 1.0 / 1024.0;
+    let height = vec3<f32>(1.0 / 3.0);
+    let hu = (dot(texture_eval(m.bump, uv + vec2<f32>(h, 0.0)), height) - dot(texture_eval(m.bump, uv - vec2<f32>(h, 0.0)), height)) / (2.0 * h) * m.bump_scale;
+    let hv = (dot(texture_eval(m.bump, uv + vec2<f32>(0.0, h)), height) - dot(texture_eval(m.bump, uv - vec2<f32>(0.0, h)), height)) / (2.0 * h) * m.bump_scale;
+    let pu = attributes[6u * k + 4u].xyz + n * hu;
+    let pv = attributes[6u * k + 5u].xyz + n * hv;
+    let c = cross(pu, pv);
+    let len2 = dot(c, c);
+    if (!(len2 > 0.0) || !finite(len2)) {
+        return n;
+    }
+    let b = c * inverseSqrt(len2);
+    return select(b, -b, dot(b, n) < 0.0);
 }
 
 // Light transport's adjoint BSDF with shading normals (Veach's correction, as the CPU's

@@ -9,14 +9,18 @@ use skelight::color::Rgb;
 use skelight::film::Filter;
 use skelight::light::Light;
 use skelight::material::microfacet::{Microfacet, MicrofacetType};
-use skelight::material::Bsdf;
-use skelight::math::{vec3, Vec3};
+use skelight::material::{Bsdf, Perturbation};
+use skelight::math::{vec2, vec3, Vec3};
 use skelight::scene::Scene;
 use skelight::texture::Texture;
 
+use crate::tables::{constant_value, Tables};
 use crate::GpuError;
 
 pub const NONE: u32 = u32::MAX;
+
+/// Four-float attributes per triangle in [`Flat::attributes`].
+pub const ATTRIBUTES: usize = 6;
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug)]
@@ -50,6 +54,7 @@ pub const PLASTIC: u32 = 4;
 pub const ROUGH_PLASTIC: u32 = 5;
 pub const PHONG: u32 = 6;
 pub const ROUGH_DIFFUSE: u32 = 7;
+pub const COATED_DIFFUSE: u32 = 8;
 
 /// Material flags.
 pub const TWO_SIDED: u32 = 1;
@@ -57,7 +62,7 @@ pub const BECKMANN: u32 = 2;
 pub const NONLINEAR: u32 = 4;
 
 #[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, PartialEq)]
 pub struct Material {
     /// Diffuse reflectance, or the specular reflectance of a conductor or dielectric.
     pub reflectance: [f32; 3],
@@ -76,11 +81,30 @@ pub struct Material {
     pub transmittance: [f32; 3],
     /// A rough plastic's transmittance table: its first entry in [`Flat::data`].
     pub table: u32,
+    /// The texture of `reflectance` (a descriptor in [`Flat::data`]), or [`NONE`].
+    pub texture: u32,
+    /// A bump map's height texture, or [`NONE`].
+    pub bump: u32,
+    pub bump_scale: f32,
+    pub pad: u32,
 }
 
-impl Material {
-    fn diffuse(reflectance: [f32; 3]) -> Material {
-        Material { reflectance, ..Material::default() }
+impl Default for Material {
+    fn default() -> Material {
+        Material {
+            reflectance: [0.0; 3],
+            flags: 0,
+            eta: [0.0; 3],
+            kind: DIFFUSE,
+            k: [0.0; 3],
+            alpha: 0.0,
+            transmittance: [0.0; 3],
+            table: 0,
+            texture: NONE,
+            bump: NONE,
+            bump_scale: 0.0,
+            pad: 0,
+        }
     }
 }
 
@@ -107,7 +131,7 @@ pub struct Emitter {
     pub beam_width: f32,
 }
 
-/// The kernels' uniform block (`Params` in common.wgsl), 192 bytes.
+/// The kernels' uniform block (`Params` in common.wgsl), 208 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
 pub struct Params {
@@ -134,14 +158,18 @@ pub struct Params {
     pub x0: u32,
     pub y0: u32,
     pub bidirectional: u32,
+    /// The tent filter's radius in pixels; 0 for the box filter.
+    pub filter_radius: f32,
+    pub pad: [u32; 3],
 }
 
 /// Everything the kernels read of a scene.
 pub struct Flat {
     pub nodes: Vec<Node>,
     pub tris: Vec<Tri>,
-    /// Three vertex normals per triangle (w unused; zero without shading normals).
-    pub normals: Vec<[f32; 4]>,
+    /// [`ATTRIBUTES`] per triangle: its vertices' normals (zero without shading normals)
+    /// with their u in w, their three v, dp/du, dp/dv (for bump maps).
+    pub attributes: Vec<[f32; 4]>,
     pub materials: Vec<Material>,
     pub emitters: Vec<Emitter>,
     /// Tables the BSDFs read (rough plastics' transmittance).
@@ -152,20 +180,25 @@ pub struct Flat {
 
 /// What the GPU renders today; anything else is refused by [`flatten`].
 pub const FEATURES: &str = "BSDFs diffuse, roughdiffuse, conductor, roughconductor, \
-    dielectric, plastic, roughplastic and phong with constant colours and isotropic roughness \
-    (one- or two-sided alike), area lights on triangle meshes, point and spot lights, shading normals, \
-    pinhole cameras, the box filter; no alpha masks, exact spheres, textures, bump maps, other \
-    BSDFs or other lights yet";
+    dielectric, plastic, roughplastic, phong and coating over diffuse, isotropic roughness, \
+    one- or two-sided alike, the main colour constant or a bitmap or checkerboard texture; bump \
+    maps; area lights on triangle meshes, point and spot lights; shading normals; pinhole \
+    cameras; box and tent filters. Not yet: alpha masks, exact spheres, normal maps, other BSDFs, \
+    other lights";
 
 fn unsupported(what: String) -> GpuError {
     GpuError::Unsupported(format!("{what}; the GPU renders {FEATURES}"))
 }
 
-/// The material's GPU form and its table (rough plastics), or why it has none.
-fn material(bsdf: &Bsdf, name: &str) -> Result<(Material, Vec<f32>), GpuError> {
-    let constant = |t: &Texture| match t {
-        Texture::Constant(c) => Ok([c.r, c.g, c.b]),
-        _ => Err(unsupported(format!("material '{name}' has a texture"))),
+/// The material's GPU form (its textures and tables added to `tables`), or why it has none.
+fn material(bsdf: &Bsdf, name: &str, tables: &mut Tables) -> Result<Material, GpuError> {
+    let constant = |t: &Texture| {
+        constant_value(t).ok_or_else(|| unsupported(format!("material '{name}' has a texture other than its colour")))
+    };
+    // The main colour (`reflectance`) may be a texture.
+    let colour = |t: &Texture, tables: &mut Tables| match tables.texture(t) {
+        Some(at) => Ok(Material { reflectance: [1.0; 3], texture: at, ..Material::default() }),
+        None => Ok(Material { reflectance: constant(t)?, ..Material::default() }),
     };
     let rgb = |c: Rgb| [c.r, c.g, c.b];
     // Isotropic microfacets only (the kernels' local frame has no tangent).
@@ -175,29 +208,22 @@ fn material(bsdf: &Bsdf, name: &str) -> Result<(Material, Vec<f32>), GpuError> {
         }
         Ok((d.alpha_u, if d.kind == MicrofacetType::Beckmann { BECKMANN } else { 0 }))
     };
-    let m = match bsdf {
-        Bsdf::Diffuse(d) => Material::diffuse(constant(&d.reflectance)?),
-        Bsdf::Black => Material::diffuse([0.0; 3]),
-        Bsdf::RoughDiffuse(d) => {
-            Material { kind: ROUGH_DIFFUSE, alpha: d.alpha, ..Material::diffuse(constant(&d.reflectance)?) }
+    Ok(match bsdf {
+        Bsdf::Diffuse(d) => colour(&d.reflectance, tables)?,
+        Bsdf::Black => Material::default(),
+        Bsdf::RoughDiffuse(d) => Material { kind: ROUGH_DIFFUSE, alpha: d.alpha, ..colour(&d.reflectance, tables)? },
+        Bsdf::Conductor(c) => {
+            Material { eta: rgb(c.eta), k: rgb(c.k), kind: CONDUCTOR, ..colour(&c.specular_reflectance, tables)? }
         }
-        Bsdf::Conductor(c) => Material {
-            reflectance: constant(&c.specular_reflectance)?,
-            eta: rgb(c.eta),
-            k: rgb(c.k),
-            kind: CONDUCTOR,
-            ..Material::default()
-        },
         Bsdf::RoughConductor(c) => {
             let (alpha, flags) = microfacet(&c.distribution)?;
             Material {
-                reflectance: constant(&c.specular_reflectance)?,
                 eta: rgb(c.eta),
                 k: rgb(c.k),
                 kind: ROUGH_CONDUCTOR,
                 alpha,
                 flags,
-                ..Material::default()
+                ..colour(&c.specular_reflectance, tables)?
             }
         }
         // Light crosses a dielectric from either side.
@@ -222,36 +248,51 @@ fn material(bsdf: &Bsdf, name: &str) -> Result<(Material, Vec<f32>), GpuError> {
             if p.nonlinear {
                 flags |= NONLINEAR;
             }
-            let material = Material {
-                reflectance: constant(p.diffuse)?,
+            let table = if p.external_transmittance.is_empty() { 0 } else { tables.push(p.external_transmittance) };
+            Material {
                 transmittance: constant(p.specular)?,
                 eta: [p.eta, p.internal_reflectance, p.specular_weight],
                 kind: if p.distribution.is_some() { ROUGH_PLASTIC } else { PLASTIC },
                 alpha,
                 flags,
-                ..Material::default()
-            };
-            return Ok((material, p.external_transmittance.to_vec()));
+                table,
+                ..colour(p.diffuse, tables)?
+            }
         }
         Bsdf::Phong(p) => Material {
-            reflectance: constant(&p.diffuse)?,
             transmittance: constant(&p.specular)?,
             eta: [p.specular_weight, 0.0, 0.0],
             alpha: p.exponent,
             kind: PHONG,
-            ..Material::default()
+            ..colour(&p.diffuse, tables)?
+        },
+        Bsdf::Coating(c) => match c.nested.as_ref() {
+            Bsdf::Diffuse(d) => Material {
+                transmittance: rgb(c.specular_reflectance),
+                eta: [c.eta, 0.0, c.specular_weight()],
+                k: rgb(c.sigma_a_thickness),
+                kind: COATED_DIFFUSE,
+                ..colour(&d.reflectance, tables)?
+            },
+            other => {
+                return Err(unsupported(format!("material '{name}' is a coating over {}", bsdf_name(other))));
+            }
         },
         // The same BSDF on both sides (the back mirrored) is that BSDF, two-sided.
         Bsdf::TwoSided(front, back) => {
-            let (f, table) = material(front, name)?;
-            if material(back, name)? != (f, table.clone()) || f.kind == DIELECTRIC {
+            let side = |b: &Bsdf| {
+                let mut scratch = Tables::default();
+                material(b, name, &mut scratch).map(|m| (m, scratch.data))
+            };
+            let f = side(front)?;
+            if side(back)? != f || f.0.kind == DIELECTRIC {
                 return Err(unsupported(format!("material '{name}' is two-sided with different BSDFs on its sides")));
             }
-            return Ok((Material { flags: f.flags | TWO_SIDED, ..f }, table));
+            let f = material(front, name, tables)?;
+            Material { flags: f.flags | TWO_SIDED, ..f }
         }
         other => return Err(unsupported(format!("material '{name}' is {}", bsdf_name(other)))),
-    };
-    Ok((m, Vec::new()))
+    })
 }
 
 fn bsdf_name(b: &Bsdf) -> &'static str {
@@ -275,9 +316,11 @@ fn bsdf_name(b: &Bsdf) -> &'static str {
 
 pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     let s = &scene.settings;
-    if s.filter != Filter::Box {
-        return Err(unsupported(format!("the film's filter is {:?}", s.filter)));
-    }
+    let filter_radius = match s.filter {
+        Filter::Box => 0.0,
+        Filter::Tent { radius } => radius,
+        other => return Err(unsupported(format!("the film's filter is {other:?}"))),
+    };
     let cam = &scene.camera;
     if cam.aperture_radius > 0.0 {
         return Err(unsupported("the camera is a thin lens".into()));
@@ -320,21 +363,27 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
                 * Rgb { r: emitter.radiance[0], g: emitter.radiance[1], b: emitter.radiance[2] }.luminance() as f64,
         );
     }
+    let mut tables = Tables::default();
     let mut materials = Vec::new();
-    let mut data = Vec::new();
     for m in &scene.materials {
-        if m.perturbation.is_some() {
-            return Err(unsupported(format!("material '{}' has a bump or normal map", m.name)));
-        }
-        let (mut flat, table) = material(&m.bsdf, &m.name)?;
-        if !table.is_empty() {
-            flat.table = data.len() as u32;
-            data.extend(table);
+        let mut flat = material(&m.bsdf, &m.name, &mut tables)?;
+        match &m.perturbation {
+            None => {}
+            Some(Perturbation::Bump { height, scale }) => {
+                // A constant height has no gradient: no bump at all.
+                if let Some(at) = tables.texture(height) {
+                    flat.bump = at;
+                    flat.bump_scale = *scale;
+                }
+            }
+            Some(Perturbation::NormalMap { .. }) => {
+                return Err(unsupported(format!("material '{}' has a normal map", m.name)));
+            }
         }
         materials.push(flat);
     }
     let mut tris = Vec::new();
-    let mut normals = Vec::new();
+    let mut attributes = Vec::new();
     let mut emitting: Vec<(u32, Rgb, f32)> = Vec::new();
     for mesh in &scene.meshes {
         if mesh.alpha.is_some() {
@@ -354,10 +403,17 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
             let p = |v: Vec3| [v.x, v.y, v.z];
             let smooth = !mesh.normals.is_empty();
             tris.push(Tri { v0: p(a), material: mesh.material, v1: p(b), emitter, v2: p(c), flags: smooth as u32 });
-            for k in mesh.indices[i] {
+            // Without texture coordinates uv are the barycentrics (as the CPU's uv_at).
+            let corners = [vec2(0.0, 0.0), vec2(1.0, 0.0), vec2(0.0, 1.0)];
+            let uv = |j: usize| if mesh.uvs.is_empty() { corners[j] } else { mesh.uvs[mesh.indices[i][j] as usize] };
+            for (j, k) in mesh.indices[i].into_iter().enumerate() {
                 let n = if smooth { mesh.normals[k as usize] } else { Vec3::ZERO };
-                normals.push([n.x, n.y, n.z, 0.0]);
+                attributes.push([n.x, n.y, n.z, uv(j).x]);
             }
+            attributes.push([uv(0).y, uv(1).y, uv(2).y, 0.0]);
+            let (dpdu, dpdv) = mesh.position_derivatives(i);
+            attributes.push([dpdu.x, dpdu.y, dpdu.z, 0.0]);
+            attributes.push([dpdv.x, dpdv.y, dpdv.z, 0.0]);
         }
     }
     if tris.is_empty() {
@@ -380,8 +436,10 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     }
     let (nodes, order) = build_bvh(&tris);
     let tris: Vec<Tri> = order.iter().map(|&i| tris[i as usize]).collect();
-    let normals: Vec<[f32; 4]> =
-        order.iter().flat_map(|&i| normals[3 * i as usize..3 * i as usize + 3].to_vec()).collect();
+    let attributes: Vec<[f32; 4]> = order
+        .iter()
+        .flat_map(|&i| attributes[ATTRIBUTES * i as usize..ATTRIBUTES * (i as usize + 1)].to_vec())
+        .collect();
     // Where each triangle went in the BVH's order (an inverse permutation, not a search per
     // emitter: scenes with many emitting triangles would take quadratic time).
     let mut position = vec![0u32; order.len()];
@@ -406,15 +464,17 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         forward: v(cam.forward),
         tan_half: [cam.tan_half.x, cam.tan_half.y],
         near_clip: cam.near_clip,
-        eps_scale: 1e-4,
+        // As the CPU's ray_epsilon.
+        eps_scale: 1.0 / 65536.0,
         width: s.width as u32,
         height: s.height as u32,
         max_depth: s.max_depth,
         rr_depth: s.rr_depth as i32,
         emitters: emitters.len() as u32,
+        filter_radius,
         ..Params::default()
     };
-    Ok(Flat { nodes, tris, normals, materials, emitters, data, params })
+    Ok(Flat { nodes, tris, attributes, materials, emitters, data: tables.data, params })
 }
 
 /// A binary BVH over `tris` by median splits along the longest axis of the centroids' box

@@ -10,6 +10,7 @@
 //! other BSDFs, lights and the thin lens (issue 35).
 
 pub mod flatten;
+mod tables;
 
 use skelight::film::Film;
 use skelight::scene::Scene;
@@ -103,6 +104,8 @@ pub struct GpuRenderer {
     counters: wgpu::Buffer,
     readback: wgpu::Buffer,
     pixels: usize,
+    /// Floats per pixel in `splats`: 3, or 10 under the tent filter.
+    splat_floats: usize,
     samples_per_dispatch: u32,
     rays: u64,
     memory: Memory,
@@ -172,9 +175,11 @@ impl GpuRenderer {
         let splat = if float_atomics { include_str!("splat_f32.wgsl") } else { include_str!("splat_cas.wgsl") };
         let source = [
             include_str!("common.wgsl"),
+            include_str!("texture.wgsl"),
             include_str!("light.wgsl"),
             include_str!("bsdf.wgsl"),
             splat,
+            include_str!("film.wgsl"),
             include_str!("camera_pass.wgsl"),
             include_str!("light_pass.wgsl"),
         ];
@@ -224,6 +229,8 @@ impl GpuRenderer {
         };
         let (camera_pass, light_pass) = (pipeline("camera_main"), pipeline("light_main"));
         let pixels = (flat.params.width * flat.params.height) as usize;
+        // Light splats (rgb), and under the tent filter the camera samples' weighted sums (7).
+        let splat_floats = if flat.params.filter_radius > 0.0 { 10 } else { 3 };
         let params_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
             size: std::mem::size_of::<Params>() as u64,
@@ -242,7 +249,7 @@ impl GpuRenderer {
         let squares = accumulator("squares");
         let splats = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("splats"),
-            size: (pixels * 12) as u64,
+            size: (pixels * 4 * splat_floats) as u64,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -254,7 +261,7 @@ impl GpuRenderer {
         });
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            size: (pixels * 44 + 8) as u64,
+            size: (pixels * (32 + 4 * splat_floats) + 8) as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -263,7 +270,7 @@ impl GpuRenderer {
             std::mem::size_of_val(flat.tris.as_slice()),
             std::mem::size_of_val(flat.materials.as_slice()),
             std::mem::size_of_val(flat.emitters.as_slice()),
-            std::mem::size_of_val(flat.normals.as_slice()),
+            std::mem::size_of_val(flat.attributes.as_slice()),
             std::mem::size_of_val(flat.data.as_slice()),
         ]
         .iter()
@@ -272,7 +279,7 @@ impl GpuRenderer {
         let tris = storage(&device, "tris", bytemuck::cast_slice(&flat.tris));
         let materials = storage(&device, "materials", bytemuck::cast_slice(&flat.materials));
         let emitters = storage(&device, "emitters", bytemuck::cast_slice(&flat.emitters));
-        let normals = storage(&device, "normals", bytemuck::cast_slice(&flat.normals));
+        let attributes = storage(&device, "attributes", bytemuck::cast_slice(&flat.attributes));
         let data = storage(&device, "data", bytemuck::cast_slice(&flat.data));
         let entries: Vec<wgpu::BindGroupEntry> = [
             &params_buffer,
@@ -282,7 +289,7 @@ impl GpuRenderer {
             &emitters,
             &sums,
             &squares,
-            &normals,
+            &attributes,
             &splats,
             &counters,
             &data,
@@ -311,7 +318,8 @@ impl GpuRenderer {
             counters,
             readback,
             rays: 0,
-            memory: Memory { scene_bytes, film_bytes_per_pixel: 44, path_state_bytes: 0 },
+            memory: Memory { scene_bytes, film_bytes_per_pixel: 32 + 4 * splat_floats as u64, path_state_bytes: 0 },
+            splat_floats,
             pixels,
             samples_per_dispatch: if info.device_type == wgpu::DeviceType::Cpu {
                 SAMPLES_PER_DISPATCH_CPU
@@ -323,7 +331,7 @@ impl GpuRenderer {
     }
 
     /// Renders sample indices `first..first + spp` of every pixel with `seed` into `film`
-    /// (box filter, the scene's size), `on_batch` seeing the samples done so far.
+    /// (the scene's size and filter), `on_batch` seeing the samples done so far.
     pub fn render_into(
         &mut self,
         film: &mut Film,
@@ -394,8 +402,9 @@ impl GpuRenderer {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&self.sums, 0, &self.readback, 0, bytes);
         encoder.copy_buffer_to_buffer(&self.squares, 0, &self.readback, bytes, bytes);
-        encoder.copy_buffer_to_buffer(&self.splats, 0, &self.readback, 2 * bytes, (self.pixels * 12) as u64);
-        encoder.copy_buffer_to_buffer(&self.counters, 0, &self.readback, (self.pixels * 44) as u64, 8);
+        let splat_bytes = (self.pixels * 4 * self.splat_floats) as u64;
+        encoder.copy_buffer_to_buffer(&self.splats, 0, &self.readback, 2 * bytes, splat_bytes);
+        encoder.copy_buffer_to_buffer(&self.counters, 0, &self.readback, 2 * bytes + splat_bytes, 8);
         self.queue.submit([encoder.finish()]);
         let slice = self.readback.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -411,19 +420,24 @@ impl GpuRenderer {
             let values: &[f32] = bytemuck::cast_slice(&data);
             let (sums, rest) = values.split_at(self.pixels * 4);
             let (squares, rest) = rest.split_at(self.pixels * 4);
-            let (splats, counters) = rest.split_at(self.pixels * 3);
+            let (splats, rest) = rest.split_at(self.pixels * 3);
+            let (filtered, counters) = rest.split_at(self.pixels * (self.splat_floats - 3));
             let (lo, hi) = (counters[0].to_bits() as u64, counters[1].to_bits() as u64);
             self.rays += lo | hi << 32;
             let f = |a: &[f32]| [a[0] as f64, a[1] as f64, a[2] as f64];
             for i in 0..self.pixels {
-                let s = &sums[i * 4..i * 4 + 4];
-                let q = &squares[i * 4..i * 4 + 4];
-                film.add_box_samples(i, f(s), f(q), s[3] as f64);
+                let (s, q) = (&sums[i * 4..i * 4 + 4], &squares[i * 4..i * 4 + 4]);
+                if filtered.is_empty() {
+                    film.add_pixel_samples(i, f(s), f(q), s[3] as f64);
+                } else {
+                    let t = &filtered[i * 7..i * 7 + 7];
+                    film.add_pixel_samples(i, f(t), f(&t[3..]), t[6] as f64);
+                }
                 film.rejected += q[3] as u64;
             }
             if self.estimator == Estimator::Ibpt {
                 for i in 0..self.pixels {
-                    film.add_box_splats(i, f(&splats[i * 3..i * 3 + 3]));
+                    film.add_pixel_splats(i, f(&splats[i * 3..i * 3 + 3]));
                 }
                 // One light path per camera sample.
                 film.splat_paths += self.pixels as u64 * spp as u64;

@@ -9,20 +9,12 @@
 // the product over x_1 … x_{j}); x_{j−1}'s camera-side density needs x_j's BSDF sampled from
 // the lens's side, known once the walk has left x_j or the connection is made.
 
-fn splat(pixel: u32, c: vec3<f32>) {
-    if (!(finite(c.x) && finite(c.y) && finite(c.z))) {
-        return;
-    }
-    splat_add(3u * pixel, c.x);
-    splat_add(3u * pixel + 1u, c.y);
-    splat_add(3u * pixel + 2u, c.z);
-}
-
 // The pinhole as seen from scene point `p` (geometric normal `ng`): the pixel the point
 // projects to, and what a connection needs.
 struct LensView {
     visible: bool,
     pixel: u32,
+    pos: vec2<f32>,        // film position (pixels)
     w: vec3<f32>,          // unit direction from p to the lens
     dist2: f32,
     importance: f32,       // W_e · pixels / (density of the lens point seen from p)
@@ -30,7 +22,7 @@ struct LensView {
 }
 
 fn lens_view(p: vec3<f32>, ng: vec3<f32>) -> LensView {
-    var v = LensView(false, 0u, vec3<f32>(0.0), 0.0, 0.0, 0.0);
+    var v = LensView(false, 0u, vec2<f32>(0.0), vec3<f32>(0.0), 0.0, 0.0, 0.0);
     let to_lens = P.cam_pos.xyz - p;
     let local = mat3x3<f32>(P.inv_x.xyz, P.inv_y.xyz, P.inv_z.xyz) * (-to_lens);
     // Points nearer than the near plane are clipped away.
@@ -62,6 +54,7 @@ fn lens_view(p: vec3<f32>, ng: vec3<f32>) -> LensView {
     v.importance = we * f32(P.width * P.height) * cos_lens / v.dist2;
     v.c = pdf_dir * abs(dot(ng, v.w)) / v.dist2;
     v.pixel = py * P.width + px;
+    v.pos = vec2<f32>(sx * f32(P.width), sy * f32(P.height));
     v.visible = true;
     return v;
 }
@@ -79,7 +72,7 @@ fn light_path(px: u32, py: u32, sample: u32) {
         let view0 = lens_view(lp.q, lp.ng);
         if (view0.visible) {
             let inv_w = 1.0 + sq(view0.c / l0);
-            splat(view0.pixel, emitted(lp, view0.w) * (abs(dot(lp.ng, view0.w)) / l0 * view0.importance / inv_w));
+            splat(view0.pixel, view0.pos, emitted(lp, view0.w) * (abs(dot(lp.ng, view0.w)) / l0 * view0.importance / inv_w));
         }
     }
     let emission = sample_emission(lp);
@@ -131,7 +124,7 @@ fn light_path(px: u32, py: u32, sample: u32) {
                     } else {
                         inv_w = 1.0 + prod * sq(c_prev / remap(l_prev)) * sq(view.c / remap(l_here)) * origin;
                     }
-                    splat(view.pixel, beta * fcos * (view.importance / inv_w));
+                    splat(view.pixel, view.pos, beta * fcos * (view.importance / inv_w));
                 }
             }
         }

@@ -33,7 +33,7 @@ fn render(gpu: &mut GpuRenderer, scene: &Scene, spp: u32, seed: u64) -> Film {
 }
 
 /// Samples per pixel (lavapipe is slow; the statistics take the noise into account).
-const SPP: u32 = 32;
+const SPP: u32 = 16;
 
 #[test]
 fn gpu_pt_matches_mitsuba_on_the_conformance_scenes_it_renders() {
@@ -101,10 +101,10 @@ fn scenes_outside_the_subset_are_refused_by_name() {
     let dir = shared_dir().join("conformance/scenes");
     for (scene, what) in [
         ("c10_roughglass.xml", "roughdielectric"),
-        ("c12_texture.xml", "texture"),
+        ("c13_mask_twosided.xml", "alpha mask"),
         ("c04_directional.xml", "directional or environment"),
         ("c14_thinlens.xml", "thin lens"),
-        ("c15_tent_filter.xml", "filter"),
+        ("c05_constant_env.xml", "directional or environment"),
     ] {
         let s = load(&dir.join(scene), &[]).unwrap();
         match GpuRenderer::new(&s, Estimator::Ibpt) {
@@ -157,8 +157,28 @@ fn gpu_ibpt_matches_cpu_ibpt_on_the_caustic_scene() {
     gpu_and_cpu_ibpt_agree(&scene, 64, 64);
 }
 
+/// Veach's door (the scene): bitmap textures, a bump-mapped rough conductor, a coated
+/// floor, glass, the room lit through the door left ajar; at max depth 4, where its noise has
+/// short enough tails for the block test at these sample counts.
+///
+/// Ignored: it fails today, and that is an open bug of the GPU's ibpt. At 32×24, depth 4,
+/// GPU ibpt (2 × 256 spp) against CPU ibpt (2 × 4096) gives block T 11–14, the GPU 2.5 %
+/// brighter overall and 8 % in a bright strip at the right edge (x 29–31, y 4–14), while CPU
+/// pt, bpt and ibpt agree with each other there (0.797–0.803) and GPU pt is within its noise
+/// (0.811). The features the door has were each checked apart (the coating, bump-map and
+/// texture test below, c12, the caustic scene) and pass. Run it with `--ignored`.
+#[test]
+#[ignore = "open bug: GPU ibpt 2.5 % bright on veach-door (see the doc comment)"]
+fn gpu_ibpt_matches_cpu_ibpt_on_veach_door() {
+    let mut scene = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 32, 24);
+    scene.settings.max_depth = 4;
+    gpu_and_cpu_ibpt_agree(&scene, 256, 4096);
+}
+
 /// The BSDFs no conformance scene has (Phong, Oren–Nayar, Beckmann microfacets) and a
-/// two-sided glossy one: c11 with its plastics swapped for them, GPU ibpt against the CPU's.
+/// two-sided glossy one: c11 with its white walls Phong, its coloured walls Oren–Nayar and its
+/// smooth plastic ball a two-sided Beckmann conductor, GPU ibpt against the CPU's (each BSDF
+/// covers much of the image, so that a wrong lobe shows).
 #[test]
 fn gpu_ibpt_matches_cpu_ibpt_with_phong_oren_nayar_and_beckmann() {
     use skelight::color::Rgb;
@@ -170,8 +190,7 @@ fn gpu_ibpt_matches_cpu_ibpt_with_phong_oren_nayar_and_beckmann() {
     let mut swapped = 0;
     for m in &mut scene.materials {
         let new = match &m.bsdf {
-            Bsdf::Plastic(_) => Bsdf::Phong(Phong::new(rgb(0.1, 0.25, 0.5), rgb(0.4, 0.4, 0.4), 20.0)),
-            Bsdf::RoughPlastic(_) => {
+            Bsdf::Plastic(_) => {
                 let c = Bsdf::RoughConductor(RoughConductor {
                     distribution: Microfacet::new(MicrofacetType::Beckmann, 0.2, 0.2),
                     eta: Rgb { r: 0.2, g: 0.92, b: 1.1 },
@@ -180,7 +199,10 @@ fn gpu_ibpt_matches_cpu_ibpt_with_phong_oren_nayar_and_beckmann() {
                 });
                 Bsdf::TwoSided(Box::new(c.clone()), Box::new(c))
             }
-            Bsdf::Diffuse(d) if m.name == "white" => {
+            Bsdf::Diffuse(_) if m.name == "white" => {
+                Bsdf::Phong(Phong::new(rgb(0.3, 0.3, 0.3), rgb(0.4, 0.4, 0.4), 10.0))
+            }
+            Bsdf::Diffuse(d) if m.name == "red" || m.name == "green" => {
                 Bsdf::RoughDiffuse(RoughDiffuse { reflectance: d.reflectance.clone(), alpha: 0.6 })
             }
             _ => continue,
@@ -190,7 +212,62 @@ fn gpu_ibpt_matches_cpu_ibpt_with_phong_oren_nayar_and_beckmann() {
     }
     assert_eq!(
         swapped,
-        3,
+        4,
+        "c11's materials changed: {:?}",
+        scene.materials.iter().map(|m| &m.name).collect::<Vec<_>>()
+    );
+    gpu_and_cpu_ibpt_agree(&scene, 64, 64);
+}
+
+/// Coatings, textures and bump maps (what veach-door has), each over much of the image: c11
+/// with its white walls a coating over a checkerboard diffuse, its smooth plastic ball a
+/// bump-mapped GGX conductor (α 0.8, as the door's hinges; the height a small bitmap), GPU
+/// ibpt against the CPU's.
+#[test]
+fn gpu_ibpt_matches_cpu_ibpt_with_coatings_textures_and_bump_maps() {
+    use skelight::color::Rgb;
+    use skelight::material::microfacet::{Microfacet, MicrofacetType};
+    use skelight::material::{Bsdf, Coating, Diffuse, Perturbation, RoughConductor};
+    use skelight::texture::{Bitmap, TexFilter, Texture, UvTransform};
+    use std::sync::Arc;
+    let mut scene = common::load_small(&shared_dir().join("conformance/scenes/c11_plastic.xml"), 48, 48);
+    let rgb = |r, g, b| Rgb { r, g, b };
+    let mut height = Image::new(8, 8);
+    for (i, p) in height.pixels.iter_mut().enumerate() {
+        *p = Rgb::splat(((i * 37) % 11) as f32 / 10.0);
+    }
+    let height = Texture::Bitmap {
+        bitmap: Arc::new(Bitmap::new(height, false, TexFilter::Bilinear)),
+        to_uv: UvTransform::IDENTITY,
+    };
+    let mut swapped = 0;
+    for m in &mut scene.materials {
+        match &m.bsdf {
+            Bsdf::Plastic(_) => {
+                m.bsdf = Bsdf::RoughConductor(RoughConductor {
+                    distribution: Microfacet::new(MicrofacetType::Ggx, 0.8, 0.8),
+                    eta: rgb(0.2, 0.92, 1.1),
+                    k: rgb(3.9, 2.45, 2.14),
+                    specular_reflectance: Texture::Constant(rgb(1.0, 1.0, 1.0)),
+                });
+                m.perturbation = Some(Perturbation::Bump { height: height.clone(), scale: 0.05 });
+            }
+            Bsdf::Diffuse(_) if m.name == "white" => {
+                let checker = Texture::Checkerboard {
+                    color0: rgb(0.8, 0.8, 0.8),
+                    color1: rgb(0.2, 0.3, 0.6),
+                    to_uv: UvTransform::scale_offset(4.0, 4.0, 0.0, 0.0),
+                };
+                let base = Bsdf::Diffuse(Diffuse { reflectance: checker });
+                m.bsdf = Bsdf::Coating(Coating::new(1.5, rgb(1.0, 1.0, 1.0), rgb(0.0, 0.0, 0.0), base));
+            }
+            _ => continue,
+        }
+        swapped += 1;
+    }
+    assert_eq!(
+        swapped,
+        2,
         "c11's materials changed: {:?}",
         scene.materials.iter().map(|m| &m.name).collect::<Vec<_>>()
     );

@@ -399,10 +399,10 @@ impl Film {
         img
     }
 
-    /// Adds samples gathered elsewhere (the GPU's kernels) to pixel `i`, under the box filter
-    /// (each sample counts for its own pixel with weight 1): their sum, sum of squares and
-    /// count.
-    pub fn add_box_samples(&mut self, i: usize, sum: [f64; 3], sum_sq: [f64; 3], count: f64) {
+    /// Adds camera samples gathered elsewhere (the GPU's kernels) to pixel `i`: their sum,
+    /// sum of squares and total weight, each sample weighted by the film's filter at this
+    /// pixel (with the box filter, 1 in its own pixel).
+    pub fn add_pixel_samples(&mut self, i: usize, sum: [f64; 3], sum_sq: [f64; 3], count: f64) {
         for c in 0..3 {
             self.sum[i][c] += sum[c];
             self.sum_sq[i][c] += sum_sq[c];
@@ -411,9 +411,9 @@ impl Film {
     }
 
     /// Adds light-tracing contributions gathered elsewhere (the GPU's light pass) to pixel
-    /// `i`, each having landed in its own pixel (box filter); `splat_paths` is the caller's
-    /// to count.
-    pub fn add_box_splats(&mut self, i: usize, sum: [f64; 3]) {
+    /// `i`, each weighted by the film's filter at this pixel (divided here by the filter's
+    /// coverage of the pixel, as `splat` is); `splat_paths` is the caller's to count.
+    pub fn add_pixel_splats(&mut self, i: usize, sum: [f64; 3]) {
         let (x, y) = (i % self.width, i / self.width);
         let coverage = self.coverage[0][x] as f64 * self.coverage[1][y] as f64;
         for (acc, s) in self.splat[i].iter_mut().zip(sum) {

@@ -23,6 +23,11 @@ impl Coating {
         let specular_weight = if s + d > 0.0 { s / (s + d) } else { 0.5 };
         Coating { eta, specular_reflectance, sigma_a_thickness, nested: Box::new(nested), specular_weight }
     }
+    /// Probability of sampling the specular reflection before Fresnel (for renderers that
+    /// re-implement the model, as the GPU's).
+    pub fn specular_weight(&self) -> f32 {
+        self.specular_weight
+    }
     /// Direction inside the layer for an outside direction `w` (same azimuth, upper side).
     fn refract_in(&self, w: Vec3) -> Vec3 {
         let inv = 1.0 / self.eta;

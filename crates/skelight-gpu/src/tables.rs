@@ -1,0 +1,89 @@
+//! The kernels' `data` buffer: textures (a descriptor each, then the texels of every bitmap
+//! once, linear RGB as the CPU decoded them) and BSDF tables (rough plastics'
+//! transmittance), addressed by word offsets that materials carry. Layouts match
+//! texture.wgsl.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use skelight::texture::{Bitmap, TexFilter, Texture};
+
+/// Texture kinds (texture.wgsl).
+pub const TEX_BILINEAR: u32 = 0;
+pub const TEX_NEAREST: u32 = 1;
+pub const TEX_CHECKER: u32 = 2;
+
+/// Words of a texture descriptor: kind, width, height, texel offset, the uv transform (6),
+/// scale, colour 0 and colour 1 of a checkerboard.
+pub const DESCRIPTOR_WORDS: usize = 17;
+
+/// The data buffer being filled, with each bitmap's texels stored once.
+#[derive(Default)]
+pub struct Tables {
+    pub data: Vec<f32>,
+    texels: HashMap<*const Bitmap, u32>,
+}
+
+impl Tables {
+    /// Appends `values` and returns their offset.
+    pub fn push(&mut self, values: &[f32]) -> u32 {
+        let at = self.data.len() as u32;
+        self.data.extend_from_slice(values);
+        at
+    }
+
+    /// The descriptor of a non-constant texture (its offset), `None` for a constant one.
+    /// Scales fold into the descriptor; a scaled constant stays constant (the caller reads
+    /// it with [`constant_value`]).
+    pub fn texture(&mut self, t: &Texture) -> Option<u32> {
+        let mut scale = 1.0;
+        let mut t = t;
+        while let Texture::Scale { scale: s, inner } = t {
+            scale *= *s;
+            t = inner;
+        }
+        let mut words = [0.0f32; DESCRIPTOR_WORDS];
+        let word = |u: u32| f32::from_bits(u);
+        match t {
+            Texture::Constant(_) | Texture::Scale { .. } => return None,
+            Texture::Bitmap { bitmap, to_uv } => {
+                let texels = self.texels(bitmap);
+                let kind = if bitmap.filter == TexFilter::Nearest { TEX_NEAREST } else { TEX_BILINEAR };
+                words[..4].copy_from_slice(&[
+                    word(kind),
+                    word(bitmap.image.width as u32),
+                    word(bitmap.image.height as u32),
+                    word(texels),
+                ]);
+                words[4..10].copy_from_slice(&to_uv.m);
+            }
+            Texture::Checkerboard { color0, color1, to_uv } => {
+                words[0] = word(TEX_CHECKER);
+                words[4..10].copy_from_slice(&to_uv.m);
+                words[11..14].copy_from_slice(&[color0.r, color0.g, color0.b]);
+                words[14..17].copy_from_slice(&[color1.r, color1.g, color1.b]);
+            }
+        }
+        words[10] = scale;
+        Some(self.push(&words))
+    }
+
+    fn texels(&mut self, bitmap: &Arc<Bitmap>) -> u32 {
+        if let Some(&at) = self.texels.get(&Arc::as_ptr(bitmap)) {
+            return at;
+        }
+        let flat: Vec<f32> = bitmap.image.pixels.iter().flat_map(|p| [p.r, p.g, p.b]).collect();
+        let at = self.push(&flat);
+        self.texels.insert(Arc::as_ptr(bitmap), at);
+        at
+    }
+}
+
+/// A constant texture's value (scales applied), or `None` for any other.
+pub fn constant_value(t: &Texture) -> Option<[f32; 3]> {
+    match t {
+        Texture::Constant(c) => Some([c.r, c.g, c.b]),
+        Texture::Scale { scale, inner } => constant_value(inner).map(|c| c.map(|v| v * scale)),
+        _ => None,
+    }
+}
