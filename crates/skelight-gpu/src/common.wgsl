@@ -167,27 +167,61 @@ fn hit_box(lo: vec3<f32>, hi: vec3<f32>, o: vec3<f32>, inv_d: vec3<f32>, t_max: 
     return t0 <= t1;
 }
 
-// Möller–Trumbore; returns (t, u, v), t = -1 for a miss.
-fn hit_tri(t: Tri, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
-    let e1 = t.v1 - t.v0;
-    let e2 = t.v2 - t.v0;
-    let p = cross(d, e2);
-    let det = dot(e1, p);
-    if (abs(det) < 1e-20) {
+// The watertight test of Woop, Benthin and Wald (2013), as the CPU's geometry/triangle.rs:
+// the vertices are sheared into the ray's frame, where a shared edge's edge function is
+// computed identically (up to sign) by both its triangles, so no ray slips between them
+// (Möller–Trumbore's barycentrics leave cracks, which the thin gaps of interiors such as
+// veach-door's door show). Per-ray constants: the axis permutation and the shear.
+struct RayShear {
+    kx: u32,
+    ky: u32,
+    kz: u32,
+    s: vec3<f32>,          // (sx, sy, sz)
+}
+
+fn ray_shear(d: vec3<f32>) -> RayShear {
+    let a = abs(d);
+    var kz = 2u;
+    if (a.x > a.y && a.x > a.z) {
+        kz = 0u;
+    } else if (a.y > a.z) {
+        kz = 1u;
+    }
+    var kx = (kz + 1u) % 3u;
+    var ky = (kx + 1u) % 3u;
+    if (d[kz] < 0.0) {
+        let t = kx;
+        kx = ky;
+        ky = t;
+    }
+    let sz = 1.0 / d[kz];
+    return RayShear(kx, ky, kz, vec3<f32>(d[kx] * sz, d[ky] * sz, sz));
+}
+
+// Returns (t, b1, b2), t = -1 for a miss.
+fn hit_tri(t: Tri, o: vec3<f32>, r: RayShear) -> vec3<f32> {
+    let a = t.v0 - o;
+    let b = t.v1 - o;
+    let c = t.v2 - o;
+    let ax = a[r.kx] - r.s.x * a[r.kz];
+    let ay = a[r.ky] - r.s.y * a[r.kz];
+    let bx = b[r.kx] - r.s.x * b[r.kz];
+    let by = b[r.ky] - r.s.y * b[r.kz];
+    let cx = c[r.kx] - r.s.x * c[r.kz];
+    let cy = c[r.ky] - r.s.y * c[r.kz];
+    let u = cx * by - cy * bx;
+    let w = bx * ay - by * ax;
+    let v = ax * cy - ay * cx;
+    if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) {
         return vec3<f32>(-1.0);
     }
+    let det = u + v + w;
+    if (det == 0.0) {
+        return vec3<f32>(-1.0);
+    }
+    let t_scaled = r.s.z * (u * a[r.kz] + v * b[r.kz] + w * c[r.kz]);
     let inv = 1.0 / det;
-    let s = o - t.v0;
-    let u = dot(s, p) * inv;
-    if (u < 0.0 || u > 1.0) {
-        return vec3<f32>(-1.0);
-    }
-    let q = cross(s, e1);
-    let v = dot(d, q) * inv;
-    if (v < 0.0 || u + v > 1.0) {
-        return vec3<f32>(-1.0);
-    }
-    return vec3<f32>(dot(e2, q) * inv, u, v);
+    return vec3<f32>(t_scaled * inv, v * inv, w * inv);
 }
 
 // Closest hit before t_max (any hit when `first_hit`).
@@ -195,6 +229,7 @@ fn intersect(o: vec3<f32>, d: vec3<f32>, t_max: f32, first_hit: bool) -> Hit {
     rays = rays + 1u;
     var best = Hit(t_max, NONE, vec2<f32>(0.0));
     let inv_d = 1.0 / d;
+    let shear = ray_shear(d);
     var i = 0u;
     loop {
         if (i == NONE) {
@@ -210,7 +245,7 @@ fn intersect(o: vec3<f32>, d: vec3<f32>, t_max: f32, first_hit: bool) -> Hit {
             continue;
         }
         for (var k = n.first; k < n.first + n.count; k = k + 1u) {
-            let r = hit_tri(tris[k], o, d);
+            let r = hit_tri(tris[k], o, shear);
             if (r.x > 0.0 && r.x < best.t) {
                 best = Hit(r.x, k, r.yz);
                 if (first_hit) {
