@@ -1,4 +1,4 @@
-//! `render --device gpu`: `pt` or `ibpt` on the GPU (crates/skelight-gpu), written like a
+//! `render --device gpu`: `pt`, `ibpt` or `lt` on the GPU (crates/skelight-gpu), written like a
 //! CPU render (same EXR with its sample count, so `merge` combines GPU and CPU renders).
 
 use anyhow::{bail, Result};
@@ -10,10 +10,10 @@ pub(crate) fn render(args: &RenderArgs) -> Result<()> {
     use anyhow::Context;
     let name = skelight::integrator::registry::find(&args.integrator)?.name;
     let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
-        bail!("--device gpu renders --integrator pt or ibpt, not {name}");
+        bail!("--device gpu renders --integrator pt, ibpt or lt, not {name}");
     };
     if !args.params.is_empty() {
-        bail!("--device gpu takes no estimator parameters (pt and ibpt have none on the GPU)");
+        bail!("--device gpu takes no estimator parameters (pt, ibpt and lt have none on the GPU)");
     }
     if args.time.is_some() || args.shard.is_some() || args.debug_skeleton.is_some() {
         bail!("--device gpu takes --spp (no --time, --shard or --debug-… yet)");
@@ -57,7 +57,7 @@ pub(crate) fn render(args: &RenderArgs) -> Result<()> {
 pub(crate) fn bench(path: &std::path::Path, scene: &skelight::scene::Scene, name: &str, spp: u32) -> Result<()> {
     let name = skelight::integrator::registry::find(name)?.name;
     let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
-        bail!("--device gpu benchmarks pt or ibpt, not {name}");
+        bail!("--device gpu benchmarks pt, ibpt or lt, not {name}");
     };
     if spp == 0 {
         bail!("--spp must be at least 1");

@@ -218,7 +218,7 @@ enum BenchKind {
         integrator: String,
         #[arg(long, default_value_t = 16)]
         spp: u32,
-        /// cpu, or gpu (pt or ibpt; reports rays/s and device memory too).
+        /// cpu, or gpu (pt, ibpt or lt; reports rays/s and device memory too).
         #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
         device: String,
         #[command(flatten)]

@@ -79,7 +79,7 @@ pub(crate) struct RenderArgs {
     /// `skelight merge` of all N shards gives the single render (up to f64 summation order).
     #[arg(long, value_name = "K/N", value_parser = parse_shard)]
     pub(crate) shard: Option<Shard>,
-    /// Where to render: cpu, or gpu (pt or ibpt, on the first Vulkan adapter: a GPU, or
+    /// Where to render: cpu, or gpu (pt, ibpt or lt, on the first Vulkan adapter: a GPU, or
     /// lavapipe; needs a build with `--features gpu` and a scene inside the GPU's subset).
     #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
     pub(crate) device: String,

@@ -14,8 +14,8 @@
 
 // Radiance along the camera ray through film position `pos` (pixels); the generator seeded.
 fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
-    if (P.max_depth == 0) {
-        return vec3<f32>(0.0);   // no segment at all: black, as the CPU
+    if (P.max_depth == 0 || P.bidirectional == 2u) {
+        return vec3<f32>(0.0);   // no segment at all (black, as the CPU), or light tracing alone
     }
     let bidir = P.bidirectional != 0u;
     let local = vec3<f32>((1.0 - 2.0 * pos.x / f32(P.width)) * P.tan_half.x,

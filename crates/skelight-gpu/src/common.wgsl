@@ -28,7 +28,7 @@ struct Params {
     emitters: u32,
     x0: u32,               // the tile this dispatch covers
     y0: u32,
-    bidirectional: u32,    // 1: instant BPT (the camera pass weighs against light tracing too)
+    bidirectional: u32,    // 1: instant BPT (the camera pass weighs against light tracing too); 2: light tracing alone
     filter_radius: f32,    // the tent filter's radius (pixels); 0: the box filter
     pad0: u32,
     pad1: u32,

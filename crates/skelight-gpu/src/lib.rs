@@ -56,6 +56,9 @@ pub enum Estimator {
     /// Instant BPT (the CPU's `ibpt`): path tracing and light tracing, one light path per
     /// camera sample, weighted by the power heuristic.
     Ibpt,
+    /// Light tracing alone (the CPU's `lt`): the light pass unweighted, one light path per
+    /// pixel sample. Sees no specular surface; it checks the light pass apart from the MIS.
+    Lt,
 }
 
 impl Estimator {
@@ -64,6 +67,7 @@ impl Estimator {
         match name {
             "pt" => Some(Estimator::Pt),
             "ibpt" => Some(Estimator::Ibpt),
+            "lt" => Some(Estimator::Lt),
             _ => None,
         }
     }
@@ -71,6 +75,7 @@ impl Estimator {
         match self {
             Estimator::Pt => "pt",
             Estimator::Ibpt => "ibpt",
+            Estimator::Lt => "lt",
         }
     }
 }
@@ -132,7 +137,11 @@ impl GpuRenderer {
     }
 
     async fn open(mut flat: Flat, estimator: Estimator) -> Result<GpuRenderer, GpuError> {
-        flat.params.bidirectional = (estimator == Estimator::Ibpt) as u32;
+        flat.params.bidirectional = match estimator {
+            Estimator::Pt => 0,
+            Estimator::Ibpt => 1,
+            Estimator::Lt => 2,
+        };
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
         desc.backends = wgpu::Backends::VULKAN;
         let instance = wgpu::Instance::new(desc);
@@ -370,7 +379,7 @@ impl GpuRenderer {
                             let (tw, th) = (TILE.min(w - x0), TILE.min(h - y0));
                             pass.set_pipeline(&self.camera_pass);
                             pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
-                            if self.estimator == Estimator::Ibpt {
+                            if self.estimator != Estimator::Pt {
                                 pass.set_pipeline(&self.light_pass);
                                 pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
                             }
@@ -435,7 +444,7 @@ impl GpuRenderer {
                 }
                 film.rejected += q[3] as u64;
             }
-            if self.estimator == Estimator::Ibpt {
+            if self.estimator != Estimator::Pt {
                 for i in 0..self.pixels {
                     film.add_pixel_splats(i, f(&splats[i * 3..i * 3 + 3]));
                 }

@@ -59,6 +59,13 @@ fn lens_view(p: vec3<f32>, ng: vec3<f32>) -> LensView {
     return v;
 }
 
+// The splat's MIS weight from the sum of the strategies' squared densities relative to light
+// tracing's: 1 when light tracing renders alone (the CPU's `lt`, which checks this pass's
+// throughput apart from its weights).
+fn light_weight(inv_w: f32) -> f32 {
+    return select(1.0 / inv_w, 1.0, P.bidirectional == 2u);
+}
+
 fn light_path(px: u32, py: u32, sample: u32) {
     seed_rng(px, py, sample, 1u);
     if (P.emitters == 0u || P.max_depth == 0) {
@@ -72,7 +79,7 @@ fn light_path(px: u32, py: u32, sample: u32) {
         let view0 = lens_view(lp.q, lp.ng);
         if (view0.visible) {
             let inv_w = 1.0 + sq(view0.c / l0);
-            splat(view0.pixel, view0.pos, emitted(lp, view0.w) * (abs(dot(lp.ng, view0.w)) / l0 * view0.importance / inv_w));
+            splat(view0.pixel, view0.pos, emitted(lp, view0.w) * (abs(dot(lp.ng, view0.w)) / l0 * view0.importance * light_weight(inv_w)));
         }
     }
     let emission = sample_emission(lp);
@@ -124,7 +131,7 @@ fn light_path(px: u32, py: u32, sample: u32) {
                     } else {
                         inv_w = 1.0 + prod * sq(c_prev / remap(l_prev)) * sq(view.c / remap(l_here)) * origin;
                     }
-                    splat(view.pixel, view.pos, beta * fcos * (view.importance / inv_w));
+                    splat(view.pixel, view.pos, beta * fcos * (view.importance * light_weight(inv_w)));
                 }
             }
         }

@@ -53,30 +53,49 @@ pub fn film_mean_se(film: &Film) -> ([f64; 3], [f64; 3]) {
     (m, se)
 }
 
-/// Per-channel mean of two independent renders and its standard error from their 8×8
-/// block differences — usable for splat-only estimators, which record no pixel variance.
-pub fn pair_mean_se(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
-    let (ba, bb) = (block_means(a, 8), block_means(b, 8));
-    let nb = ba.len() as f64;
-    let mut m = [0.0; 3];
-    let mut se = [0.0; 3];
-    for c in 0..3 {
-        m[c] = ba.iter().zip(&bb).map(|(x, y)| 0.5 * (x[c] + y[c])).sum::<f64>() / nb;
-        se[c] = ba.iter().zip(&bb).map(|(x, y)| (x[c] - y[c]).powi(2) / 4.0).sum::<f64>().sqrt() / nb;
-    }
+/// Per 8×8 block and channel: the mean over independent renders (batches) of one estimator
+/// and the variance of that mean, from the batches' spread (s²/n).
+fn batch_block_stats(batches: &[&Image]) -> Vec<[(f64, f64); 3]> {
+    assert!(batches.len() >= 2, "the spread needs two renders at least");
+    let blocks: Vec<_> = batches.iter().map(|i| block_means(i, 8)).collect();
+    let n = blocks.len() as f64;
+    (0..blocks[0].len())
+        .map(|b| {
+            std::array::from_fn(|c| {
+                let mean = blocks.iter().map(|x| x[b][c]).sum::<f64>() / n;
+                let s2 = blocks.iter().map(|x| (x[b][c] - mean).powi(2)).sum::<f64>() / (n - 1.0);
+                (mean, s2 / n)
+            })
+        })
+        .collect()
+}
+
+/// Per-channel mean of independent renders and its standard error from their 8×8 blocks'
+/// spread — usable for splat-only estimators, which record no pixel variance.
+pub fn batch_mean_se(batches: &[&Image]) -> ([f64; 3], [f64; 3]) {
+    let stats = batch_block_stats(batches);
+    let nb = stats.len() as f64;
+    let m = std::array::from_fn(|c| stats.iter().map(|b| b[c].0).sum::<f64>() / nb);
+    let se = std::array::from_fn(|c| stats.iter().map(|b| b[c].1).sum::<f64>().sqrt() / nb);
     (m, se)
 }
 
-/// Block T between two estimators, each rendered twice: mean_b (avg₁ − avg₂)² over
-/// mean_b of both averages' variances from their own pairs' differences. ≈ 1 when the two
-/// estimate the same image.
-pub fn pair_block_t(a1: &Image, a2: &Image, b1: &Image, b2: &Image) -> f64 {
-    let [a1, a2, b1, b2] = [a1, a2, b1, b2].map(|i| block_means(i, 8));
+/// The two-render case of [`batch_mean_se`].
+pub fn pair_mean_se(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
+    batch_mean_se(&[a, b])
+}
+
+/// Block T between two estimators, each rendered several times: Σ_b (mean_a − mean_b)² over
+/// Σ_b of both means' variances from their own renders' spread. ≈ 1 when the two estimate the
+/// same image. More renders make the variance estimate robust against the heavy tails of
+/// light tracing's splats (with two, a pair that happens to agree makes T large).
+pub fn batch_block_t(a: &[&Image], b: &[&Image]) -> f64 {
+    let (sa, sb) = (batch_block_stats(a), batch_block_stats(b));
     let (mut num, mut den) = (0.0, 0.0);
-    for i in 0..a1.len() {
+    for (x, y) in sa.iter().zip(&sb) {
         for c in 0..3 {
-            num += (0.5 * (a1[i][c] + a2[i][c]) - 0.5 * (b1[i][c] + b2[i][c])).powi(2);
-            den += (a1[i][c] - a2[i][c]).powi(2) / 4.0 + (b1[i][c] - b2[i][c]).powi(2) / 4.0;
+            num += (x[c].0 - y[c].0).powi(2);
+            den += x[c].1 + y[c].1;
         }
     }
     if den > 0.0 {
@@ -84,6 +103,11 @@ pub fn pair_block_t(a1: &Image, a2: &Image, b1: &Image, b2: &Image) -> f64 {
     } else {
         1.0
     }
+}
+
+/// The two-renders-each case of [`batch_block_t`].
+pub fn pair_block_t(a1: &Image, a2: &Image, b1: &Image, b2: &Image) -> f64 {
+    batch_block_t(&[a1, a2], &[b1, b2])
 }
 
 /// Outcome of comparing two independent renders with a reference.
