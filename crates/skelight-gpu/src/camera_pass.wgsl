@@ -12,10 +12,32 @@
 // next-event estimation L_0/C_0 (x_1 not specular), light tracing Π_{i<k} L_i/C_i (x_{k−1}
 // not specular); the light hitting a pinhole has density 0.
 
+// What the environment sends along a camera walk that leaves the scene after y_m (m ≥ 0
+// surface vertices) in direction `d` sampled with solid-angle density `pdf_dir` (0: through
+// a delta lobe), weighted against next-event estimation (L_0/C_0 per solid angle) and light
+// tracing (y_m's light-side density: the disk's, projected), with the walk's MIS state.
+fn environment_hit(m: i32, pdf_dir: f32, d: vec3<f32>, bidir: bool, prod: f32, c_prev: f32, n_prev: vec3<f32>,
+                   delta_prev: bool, delta_first: bool) -> vec3<f32> {
+    let e = emitters[P.environment];
+    if (m == 0) {
+        return e.radiance;   // seen directly: no other strategy finds it
+    }
+    let nee = sq(e.pick * 0.25 * INV_PI / remap(pdf_dir));
+    var inv_w = 1.0;
+    if (!delta_prev) {
+        inv_w = inv_w + nee;
+    }
+    if (bidir && !delta_first) {
+        let l_prev = abs(dot(n_prev, d)) / e.area;
+        inv_w = inv_w + prod * sq(l_prev / remap(c_prev)) * nee;
+    }
+    return e.radiance / inv_w;
+}
+
 // Radiance along the camera ray through film position `pos` (pixels); the generator seeded.
 fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
-    if (P.max_depth == 0 || P.bidirectional == 2u) {
-        return vec3<f32>(0.0);   // no segment at all (black, as the CPU), or light tracing alone
+    if (P.max_depth == 0) {
+        return vec3<f32>(0.0);   // no segment at all: black, as the CPU
     }
     let bidir = P.bidirectional != 0u;
     let local = vec3<f32>((1.0 - 2.0 * pos.x / f32(P.width)) * P.tan_half.x,
@@ -39,6 +61,16 @@ fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
     loop {
         let h = intersect(o, d, 3.0e38, false);
         if (h.tri == NONE) {
+            // The ray leaves the scene: the environment, x_0, ends a path of k = m + 1
+            // segments (the loop traced it only if k ≤ max_depth).
+            if (P.environment != NONE) {
+                l = l + beta * environment_hit(m, pdf_dir, d, bidir, prod, c_prev, n_prev, delta_prev, delta_first);
+            }
+            break;
+        }
+        // Light tracing alone (the CPU's lt) takes from the camera only the environment seen
+        // directly, which light paths cannot reach.
+        if (P.bidirectional == 2u) {
             break;
         }
         m = m + 1;
@@ -80,36 +112,39 @@ fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
         // Next-event estimation: y_m = x_1 joined to a light point x_0 (k = m + 1).
         if (P.emitters > 0u && has_smooth(s.material)) {
             let lp = sample_light_point();
-            let to = lp.q - s.p;
-            let dist2_l = dot(to, to);
-            let wl = to * inverseSqrt(dist2_l);
-            let cos_l = light_cos(lp, wl);
+            let c = connect_to_light(lp, s.p);
+            let wl = c.w;
             let le = emitted(lp, -wl);
             let fcos = bsdf_eval(s, wi, wl);
-            if (max(le.x, max(le.y, le.z)) > 0.0 && cos_l > 0.0 && max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
+            if (max(le.x, max(le.y, le.z)) > 0.0 && c.g > 0.0 && max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
                 // Aimed at q from the offset origin itself (as the CPU's spawn_ray_to): the
                 // offset would otherwise shift the ray beside q, into a small emitter's
-                // own triangles at grazing angles.
+                // own triangles at grazing angles. A directional light's ray is unbounded.
                 let po = spawn(s.p, s.ng, wl);
-                let shadow_dist = distance(lp.q, po);
-                let shadow = intersect(po, (lp.q - po) / shadow_dist, shadow_dist * (1.0 - 1e-4), true);
+                var shadow_dir = wl;
+                var shadow_dist = c.dist;
+                if (!lp.distant) {
+                    shadow_dist = distance(lp.q, po);
+                    shadow_dir = (lp.q - po) / shadow_dist;
+                }
+                let shadow = intersect(po, shadow_dir, shadow_dist * (1.0 - 1e-4), true);
                 if (shadow.tri == NONE) {
-                    let l0 = origin_density(lp);
+                    let l0 = nee_density(lp);
                     var inv_w = 1.0;
                     // The camera's walk hitting the light (area lights only).
                     if (!lp.delta) {
-                        inv_w = inv_w + sq(bsdf_pdf(s, wi, wl) * cos_l / dist2_l / l0);
+                        inv_w = inv_w + sq(bsdf_pdf(s, wi, wl) * c.g / l0);
                     }
                     if (bidir && !delta_first) {
-                        // Light tracing: L/C of y_m (the emission's density) and y_{m−1} (y_m's
-                        // BSDF sampled from the light point's side).
-                        var r = prod * sq((emission_pdf(lp, -wl) * abs(dot(s.ng, wl)) / dist2_l) / remap(c_here));
+                        // Light tracing: L/C of y_m (the light pass's first hit) and y_{m−1}
+                        // (y_m's BSDF sampled from the light point's side).
+                        var r = prod * sq(first_hit_density(lp, -wl, s.p, s.ng) / remap(c_here));
                         if (m >= 2) {
                             r = r * sq((bsdf_pdf(s, wl, wi) * cos_prev / dist2) / remap(c_prev));
                         }
                         inv_w = inv_w + r;
                     }
-                    l = l + beta * fcos * le * (cos_l / (dist2_l * l0 * inv_w));
+                    l = l + beta * fcos * le * (c.g / (l0 * inv_w));
                 }
             }
         }

@@ -30,7 +30,7 @@ struct Params {
     y0: u32,
     bidirectional: u32,    // 1: instant BPT (the camera pass weighs against light tracing too); 2: light tracing alone
     filter_radius: f32,    // the tent filter's radius (pixels); 0: the box filter
-    pad0: u32,
+    environment: u32,      // the constant environment's emitter, or NONE
     pad1: u32,
     pad2: u32,
 }
@@ -266,6 +266,13 @@ fn frame(n: vec3<f32>) -> mat3x3<f32> {
     let t = vec3<f32>(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
     let bt = vec3<f32>(b, s + n.y * n.y * a, -n.y);
     return mat3x3<f32>(t, bt, n);
+}
+
+fn uniform_sphere(u: vec2<f32>) -> vec3<f32> {
+    let z = 1.0 - 2.0 * u.x;
+    let r = sqrt(max(1.0 - z * z, 0.0));
+    let phi = 2.0 * PI * u.y;
+    return vec3<f32>(r * cos(phi), r * sin(phi), z);
 }
 
 fn cosine_hemisphere(u: vec2<f32>) -> vec3<f32> {

@@ -18,6 +18,10 @@ use crate::tables::{constant_value, Tables};
 use crate::GpuError;
 
 pub const NONE: u32 = u32::MAX;
+/// `Emitter::tri` of a directional light.
+pub const DISTANT: u32 = u32::MAX - 1;
+/// `Emitter::tri` of a constant environment.
+pub const ENVIRONMENT: u32 = u32::MAX - 2;
 
 /// Four-float attributes per triangle in [`Flat::attributes`].
 pub const ATTRIBUTES: usize = 6;
@@ -108,8 +112,11 @@ impl Default for Material {
     }
 }
 
-/// An emitting triangle, or a point or spot light (`tri` = [`NONE`]; a point light is a spot
-/// whose cone is the whole sphere, `cos_cutoff` = −1).
+/// An emitting triangle, a point or spot light (`tri` = [`NONE`]; a point light is a spot
+/// whose cone is the whole sphere, `cos_cutoff` = −1), a directional light (`tri` =
+/// [`DISTANT`]) or a constant environment (`tri` = [`ENVIRONMENT`]); the last two start the
+/// light pass's rays on a disk (centre `position` for a directional light, the emission
+/// sphere's centre for the environment; radius `cutoff`, area `area`).
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
 pub struct Emitter {
@@ -160,7 +167,9 @@ pub struct Params {
     pub bidirectional: u32,
     /// The tent filter's radius in pixels; 0 for the box filter.
     pub filter_radius: f32,
-    pub pad: [u32; 3],
+    /// The constant environment's emitter, or [`NONE`].
+    pub environment: u32,
+    pub pad: [u32; 2],
 }
 
 /// Everything the kernels read of a scene.
@@ -182,9 +191,9 @@ pub struct Flat {
 pub const FEATURES: &str = "BSDFs diffuse, roughdiffuse, conductor, roughconductor, \
     dielectric, plastic, roughplastic, phong and coating over diffuse, isotropic roughness, \
     one- or two-sided alike, the main colour constant or a bitmap or checkerboard texture; bump \
-    maps; area lights on triangle meshes, point and spot lights; shading normals; pinhole \
-    cameras; box and tent filters. Not yet: alpha masks, exact spheres, normal maps, other BSDFs, \
-    other lights";
+    maps; area lights on triangle meshes, point, spot and directional lights, a constant \
+    environment; shading normals; pinhole cameras; box and tent filters. Not yet: alpha masks, \
+    exact spheres, normal maps, other BSDFs, environment maps";
 
 fn unsupported(what: String) -> GpuError {
     GpuError::Unsupported(format!("{what}; the GPU renders {FEATURES}"))
@@ -325,7 +334,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     if cam.aperture_radius > 0.0 {
         return Err(unsupported("the camera is a thin lens".into()));
     }
-    // Point and spot lights; area lights come with their meshes' triangles below.
+    // Point, spot and directional lights; area lights come with their meshes' triangles below.
     let mut emitters = Vec::new();
     let mut power = Vec::new();
     for light in &scene.lights {
@@ -336,6 +345,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
             Light::Point { position, intensity } => {
                 let e = Emitter {
                     radiance: rgb(intensity),
+                    tri: NONE,
                     position: p(position),
                     axis: [0.0, 0.0, 1.0],
                     cos_cutoff: -1.0,
@@ -346,6 +356,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
             Light::Spot { position, frame, intensity, cos_cutoff, cutoff, beam_width } => {
                 let e = Emitter {
                     radiance: rgb(intensity),
+                    tri: NONE,
                     position: p(position),
                     axis: p(frame.n),
                     cos_cutoff,
@@ -355,9 +366,43 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
                 };
                 (e, 2.0 * std::f64::consts::PI * (1.0 - cos_cutoff as f64))
             }
-            _ => return Err(unsupported("the scene has a directional or environment light".into())),
+            Light::Directional { direction, irradiance } => {
+                // As the CPU's sample_le: rays start uniformly on a disk of the emission
+                // sphere's radius, behind the scene, perpendicular to the direction.
+                let (center, radius) = scene.emission_sphere();
+                let area = std::f32::consts::PI * radius * radius;
+                let e = Emitter {
+                    radiance: rgb(irradiance),
+                    tri: DISTANT,
+                    position: p(center - direction * radius),
+                    axis: p(direction),
+                    area,
+                    cutoff: radius,
+                    ..Emitter::default()
+                };
+                // "Power" as irradiance × the disk's area (the pick's weight only).
+                (e, area as f64)
+            }
+            Light::Constant { radiance } => {
+                let (center, radius) = scene.emission_sphere();
+                let area = std::f32::consts::PI * radius * radius;
+                if emitters.iter().any(|e: &Emitter| e.tri == ENVIRONMENT) {
+                    return Err(unsupported("the scene has two environment lights".into()));
+                }
+                let e = Emitter {
+                    radiance: rgb(radiance),
+                    tri: ENVIRONMENT,
+                    position: p(center),
+                    area,
+                    cutoff: radius,
+                    ..Emitter::default()
+                };
+                // As the CPU's power: π × the disk's area × radiance.
+                (e, std::f64::consts::PI * area as f64)
+            }
+            _ => return Err(unsupported("the scene has an environment map".into())),
         };
-        emitters.push(Emitter { tri: NONE, ..emitter });
+        emitters.push(emitter);
         power.push(
             solid_angle
                 * Rgb { r: emitter.radiance[0], g: emitter.radiance[1], b: emitter.radiance[2] }.luminance() as f64,
@@ -446,7 +491,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     for (at, &i) in order.iter().enumerate() {
         position[i as usize] = at as u32;
     }
-    for e in emitters.iter_mut().filter(|e| e.tri != NONE) {
+    for e in emitters.iter_mut().filter(|e| e.tri < ENVIRONMENT) {
         e.tri = position[e.tri as usize];
     }
     let v = |x: Vec3| [x.x, x.y, x.z, 0.0];
@@ -472,6 +517,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         rr_depth: s.rr_depth as i32,
         emitters: emitters.len() as u32,
         filter_radius,
+        environment: emitters.iter().position(|e| e.tri == ENVIRONMENT).map_or(NONE, |i| i as u32),
         ..Params::default()
     };
     Ok(Flat { nodes, tris, attributes, materials, emitters, data: tables.data, params })

@@ -72,10 +72,13 @@ fn light_path(px: u32, py: u32, sample: u32) {
         return;
     }
     let lp = sample_light_point();
+    // The light point's density: for the throughput (per unit area, on a distant light's
+    // disk), and L_0 for the MIS (the environment's per solid angle).
     let l0 = origin_density(lp);
+    let l0_mis = nee_density(lp);
     // The light point seen by the camera (k = 1): only the camera hitting it competes.
     // Point-like lights cannot be seen (the CPU's connect_to_camera skips them too).
-    if (!lp.delta) {
+    if (!lp.delta && !lp.distant) {
         let view0 = lens_view(lp.q, lp.ng);
         if (view0.visible) {
             let inv_w = 1.0 + sq(view0.c / l0);
@@ -113,9 +116,14 @@ fn light_path(px: u32, py: u32, sample: u32) {
         }
         let dist2 = dot(s.p - prev_p, s.p - prev_p);
         let cos_g = abs(dot(s.ng, d));
-        let l_here = pdf_dir * cos_g / dist2;
+        // x_j's light-side density per unit area (x_1's from the light point's sampling).
+        let l_here = select(pdf_dir * cos_g / dist2, first_hit_density(lp, d, s.p, s.ng), j == 1);
         // x_{j−1}'s |cos| on the segment to x_j.
         let cos_prev = abs(dot(n_prev, d));
+        // x_{j−1}'s camera-side densities convert from solid angle by this: per unit area, or
+        // per solid angle at the environment (x_0); 0 where the camera cannot hit x_0
+        // (point-like and directional lights, whose normal is zero or which are delta).
+        let to_prev = select(cos_prev / dist2, select(1.0, 0.0, lp.delta), j == 1 && lp.distant);
         let wi = -d;
         // Explicit light path: x_j joined to the lens (j + 1 segments).
         if (P.max_depth < 0 || j + 1 <= P.max_depth) {
@@ -124,10 +132,10 @@ fn light_path(px: u32, py: u32, sample: u32) {
                 let fcos = bsdf_eval(s, wi, view.w) * adjoint_correction(s, wi, view.w);
                 if (max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
                     // x_{j−1}'s camera-side density: x_j's BSDF sampled from the lens's side.
-                    let c_prev = bsdf_pdf(s, view.w, wi) * cos_prev / dist2;
+                    let c_prev = bsdf_pdf(s, view.w, wi) * to_prev;
                     var inv_w = 1.0;
                     if (j == 1) {
-                        inv_w = 1.0 + sq(view.c / l_here) * (1.0 + sq(c_prev / l0));
+                        inv_w = 1.0 + sq(view.c / l_here) * (1.0 + sq(c_prev / l0_mis));
                     } else {
                         inv_w = 1.0 + prod * sq(c_prev / remap(l_prev)) * sq(view.c / remap(l_here)) * origin;
                     }
@@ -151,10 +159,10 @@ fn light_path(px: u32, py: u32, sample: u32) {
         let delta = bs.pdf == 0.0;
         // x_{j−1}'s camera-side density: x_j's BSDF sampled from wo towards it (0 through a
         // delta lobe).
-        let c_prev = select(bsdf_pdf(s, wo, wi), 0.0, delta) * cos_prev / dist2;
+        let c_prev = select(bsdf_pdf(s, wo, wi), 0.0, delta) * to_prev;
         if (j == 1) {
             // Next-event estimation needs x_1 not specular; the camera hitting x_0, an area light.
-            origin = select(1.0, 0.0, delta) + select(sq(remap(c_prev) / l0), 0.0, lp.delta);
+            origin = select(1.0, 0.0, delta) + select(sq(remap(c_prev) / l0_mis), 0.0, lp.delta);
         } else {
             prod = prod * sq(remap(c_prev) / remap(l_prev));
         }

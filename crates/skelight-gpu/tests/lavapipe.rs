@@ -45,6 +45,11 @@ fn gpu_ibpt_matches_mitsuba_on_the_conformance_scenes_it_renders() {
     matches_mitsuba(Estimator::Ibpt);
 }
 
+/// Scenes whose Mitsuba reference differs from the physically right image (the CPU's
+/// tests/conformance.rs gives the evidence): c05's sky leaks through the floor in Mitsuba
+/// (+0.094 % over the image). The GPU is compared with the CPU there instead.
+const MITSUBA_DIFFERS: &[&str] = &["c05_constant_env"];
+
 fn matches_mitsuba(estimator: Estimator) {
     let label = estimator.name();
     let dir = shared_dir().join("conformance");
@@ -52,6 +57,9 @@ fn matches_mitsuba(estimator: Estimator) {
         serde_json::from_str(&std::fs::read_to_string(dir.join("refs/manifest.json")).unwrap()).unwrap();
     let (mut tested, mut refused, mut failures) = (Vec::new(), Vec::new(), Vec::new());
     for (name, entry) in manifest.as_object().expect("manifest: an object of scenes") {
+        if MITSUBA_DIFFERS.contains(&name.as_str()) {
+            continue;
+        }
         let scene = load(&dir.join("scenes").join(format!("{name}.xml")), &[]).unwrap();
         let mut gpu = match open(&scene, estimator) {
             Ok(Some(g)) => g,
@@ -102,9 +110,8 @@ fn scenes_outside_the_subset_are_refused_by_name() {
     for (scene, what) in [
         ("c10_roughglass.xml", "roughdielectric"),
         ("c13_mask_twosided.xml", "alpha mask"),
-        ("c04_directional.xml", "directional or environment"),
         ("c14_thinlens.xml", "thin lens"),
-        ("c05_constant_env.xml", "directional or environment"),
+        ("c06_envmap.xml", "environment map"),
     ] {
         let s = load(&dir.join(scene), &[]).unwrap();
         match GpuRenderer::new(&s, Estimator::Ibpt) {
@@ -179,6 +186,24 @@ fn gpu_ibpt_matches_cpu_ibpt_on_veach_door() {
     let mut scene = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 32, 24);
     scene.settings.max_depth = 4;
     gpu_and_cpu_agree(Estimator::Ibpt, &scene, 8, 32, 512);
+}
+
+/// The constant environment (c05, whose Mitsuba reference differs): GPU pt and ibpt against
+/// the CPU's.
+#[test]
+fn gpu_pt_and_ibpt_match_the_cpu_under_a_constant_environment() {
+    let scene = common::load_small(&shared_dir().join("conformance/scenes/c05_constant_env.xml"), 48, 48);
+    gpu_and_cpu_agree(Estimator::Pt, &scene, 4, 32, 64);
+    gpu_and_cpu_agree(Estimator::Ibpt, &scene, 4, 32, 64);
+}
+
+/// Distant lights (c04: a directional light and a constant environment): GPU lt against CPU
+/// lt, the light pass's rays from the disks behind the scene and the environment seen
+/// directly (the Mitsuba comparisons above check pt and ibpt on it).
+#[test]
+fn gpu_lt_matches_cpu_lt_with_directional_and_environment_lights() {
+    let scene = common::load_small(&shared_dir().join("conformance/scenes/c04_directional.xml"), 48, 48);
+    gpu_and_cpu_agree(Estimator::Lt, &scene, 8, 64, 64);
 }
 
 /// c11 at 48×48 with `swap` applied to each material (true where it changed one; `expected`
