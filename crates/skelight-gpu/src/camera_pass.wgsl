@@ -19,10 +19,11 @@
 fn environment_hit(m: i32, pdf_dir: f32, d: vec3<f32>, bidir: bool, prod: f32, c_prev: f32, n_prev: vec3<f32>,
                    delta_prev: bool, delta_first: bool) -> vec3<f32> {
     let e = emitters[P.environment];
+    let radiance = env_eval(d);
     if (m == 0) {
-        return e.radiance;   // seen directly: no other strategy finds it
+        return radiance;   // seen directly: no other strategy finds it
     }
-    let nee = sq(e.pick * 0.25 * INV_PI / remap(pdf_dir));
+    let nee = sq(e.pick * env_pdf(d) / remap(pdf_dir));
     var inv_w = 1.0;
     if (!delta_prev) {
         inv_w = inv_w + nee;
@@ -31,7 +32,7 @@ fn environment_hit(m: i32, pdf_dir: f32, d: vec3<f32>, bidir: bool, prod: f32, c
         let l_prev = abs(dot(n_prev, d)) / e.area;
         inv_w = inv_w + prod * sq(l_prev / remap(c_prev)) * nee;
     }
-    return e.radiance / inv_w;
+    return radiance / inv_w;
 }
 
 // Radiance along the camera ray through film position `pos` (pixels); the generator seeded.

@@ -30,8 +30,8 @@ struct Params {
     y0: u32,
     bidirectional: u32,    // 1: instant BPT (the camera pass weighs against light tracing too); 2: light tracing alone
     filter_radius: f32,    // the tent filter's radius (pixels); 0: the box filter
-    environment: u32,      // the constant environment's emitter, or NONE
-    pad1: u32,
+    environment: u32,      // the environment's emitter, or NONE
+    environment_map: u32,  // its lat-long map's descriptor in `data`, or NONE: constant
     pad2: u32,
 }
 

@@ -114,7 +114,7 @@ impl Default for Material {
 
 /// An emitting triangle, a point or spot light (`tri` = [`NONE`]; a point light is a spot
 /// whose cone is the whole sphere, `cos_cutoff` = −1), a directional light (`tri` =
-/// [`DISTANT`]) or a constant environment (`tri` = [`ENVIRONMENT`]); the last two start the
+/// [`DISTANT`]) or the environment (`tri` = [`ENVIRONMENT`]); the last two start the
 /// light pass's rays on a disk (centre `position` for a directional light, the emission
 /// sphere's centre for the environment; radius `cutoff`, area `area`).
 #[repr(C)]
@@ -167,9 +167,11 @@ pub struct Params {
     pub bidirectional: u32,
     /// The tent filter's radius in pixels; 0 for the box filter.
     pub filter_radius: f32,
-    /// The constant environment's emitter, or [`NONE`].
+    /// The environment's emitter, or [`NONE`].
     pub environment: u32,
-    pub pad: [u32; 2],
+    /// Its lat-long map's descriptor in the data buffer, or [`NONE`] for a constant one.
+    pub environment_map: u32,
+    pub pad: [u32; 1],
 }
 
 /// Everything the kernels read of a scene.
@@ -191,9 +193,9 @@ pub struct Flat {
 pub const FEATURES: &str = "BSDFs diffuse, roughdiffuse, conductor, roughconductor, \
     dielectric, plastic, roughplastic, phong and coating over diffuse, isotropic roughness, \
     one- or two-sided alike, the main colour constant or a bitmap or checkerboard texture; bump \
-    maps; area lights on triangle meshes, point, spot and directional lights, a constant \
-    environment; shading normals; pinhole cameras; box and tent filters. Not yet: alpha masks, \
-    exact spheres, normal maps, other BSDFs, environment maps";
+    maps; area lights on triangle meshes, point, spot and directional lights, a constant or \
+    lat-long environment; shading normals; pinhole cameras; box and tent filters. Not yet: alpha \
+    masks, exact spheres, normal maps, other BSDFs, sun and sky";
 
 fn unsupported(what: String) -> GpuError {
     GpuError::Unsupported(format!("{what}; the GPU renders {FEATURES}"))
@@ -337,6 +339,8 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     // Point, spot and directional lights; area lights come with their meshes' triangles below.
     let mut emitters = Vec::new();
     let mut power = Vec::new();
+    let mut tables = Tables::default();
+    let mut environment_map = NONE;
     for light in &scene.lights {
         let rgb = |c: Rgb| [c.r, c.g, c.b];
         let p = |v: Vec3| [v.x, v.y, v.z];
@@ -383,12 +387,25 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
                 // "Power" as irradiance × the disk's area (the pick's weight only).
                 (e, area as f64)
             }
-            Light::Constant { radiance } => {
-                let (center, radius) = scene.emission_sphere();
-                let area = std::f32::consts::PI * radius * radius;
+            Light::Constant { .. } | Light::Env(_) => {
                 if emitters.iter().any(|e: &Emitter| e.tri == ENVIRONMENT) {
                     return Err(unsupported("the scene has two environment lights".into()));
                 }
+                // The radiance: the constant's, or a map's mean (for the pick's weight only;
+                // environment.wgsl reads the map).
+                let radiance = match light {
+                    Light::Env(env) => {
+                        let Some(map) = env.as_lat_long() else {
+                            return Err(unsupported("the scene has a sun and sky".into()));
+                        };
+                        environment_map = tables.environment_map(map);
+                        map.image().mean() * map.scale()
+                    }
+                    Light::Constant { radiance } => *radiance,
+                    _ => unreachable!(),
+                };
+                let (center, radius) = scene.emission_sphere();
+                let area = std::f32::consts::PI * radius * radius;
                 let e = Emitter {
                     radiance: rgb(radiance),
                     tri: ENVIRONMENT,
@@ -400,7 +417,6 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
                 // As the CPU's power: π × the disk's area × radiance.
                 (e, std::f64::consts::PI * area as f64)
             }
-            _ => return Err(unsupported("the scene has an environment map".into())),
         };
         emitters.push(emitter);
         power.push(
@@ -408,7 +424,6 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
                 * Rgb { r: emitter.radiance[0], g: emitter.radiance[1], b: emitter.radiance[2] }.luminance() as f64,
         );
     }
-    let mut tables = Tables::default();
     let mut materials = Vec::new();
     for m in &scene.materials {
         let mut flat = material(&m.bsdf, &m.name, &mut tables)?;
@@ -518,6 +533,7 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         emitters: emitters.len() as u32,
         filter_radius,
         environment: emitters.iter().position(|e| e.tri == ENVIRONMENT).map_or(NONE, |i| i as u32),
+        environment_map,
         ..Params::default()
     };
     Ok(Flat { nodes, tris, attributes, materials, emitters, data: tables.data, params })

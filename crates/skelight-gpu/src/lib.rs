@@ -185,6 +185,7 @@ impl GpuRenderer {
         let source = [
             include_str!("common.wgsl"),
             include_str!("texture.wgsl"),
+            include_str!("environment.wgsl"),
             include_str!("light.wgsl"),
             include_str!("bsdf.wgsl"),
             splat,

@@ -1,11 +1,11 @@
 // The lights: area lights (emitting triangles, one entry each), point and spot lights (a
-// point light is a spot whose cone is the whole sphere), directional lights and a constant
-// environment, picked by power. Conventions as the CPU's light/mod.rs: Mitsuba 3's spot
-// falloff, emission sampled by the cosine (area) or uniformly in the cone (spot); distant
-// lights (directional, environment) start the light pass's rays uniformly on a disk of the
-// emission sphere's radius across their direction, behind the scene; the environment's
-// direction is uniform on the sphere. Point-like and directional lights (both `delta`) cannot
-// be hit or seen; the environment is hit by rays that leave the scene.
+// point light is a spot whose cone is the whole sphere), directional lights and one
+// environment (constant or a lat-long map, environment.wgsl), picked by power. Conventions as
+// the CPU's light/mod.rs: Mitsuba 3's spot falloff, emission sampled by the cosine (area) or
+// uniformly in the cone (spot); distant lights (directional, environment) start the light
+// pass's rays uniformly on a disk of the emission sphere's radius across their direction,
+// behind the scene. Point-like and directional lights (both `delta`) cannot be hit or seen;
+// the environment is hit by rays that leave the scene.
 
 const DISTANT: u32 = 0xfffffffeu;
 const ENVIRONMENT: u32 = 0xfffffffdu;
@@ -37,20 +37,25 @@ struct LightPoint {
     delta: bool,           // a point, spot or directional light (a delta in position or direction)
     distant: bool,         // a directional light or the environment: q is on a disk outside
                            // the scene, e.axis the direction light travels
+    pdf_dir: f32,          // the environment's density (solid angle) of e.axis; 1 for others
 }
 
 fn sample_light_point() -> LightPoint {
     let e = emitters[pick_emitter(rnd())];
     var u = vec2<f32>(rnd(), rnd());
     if (e.tri == NONE) {
-        return LightPoint(e, e.position, vec3<f32>(0.0), vec3<f32>(0.0), true, false);
+        return LightPoint(e, e.position, vec3<f32>(0.0), vec3<f32>(0.0), true, false, 1.0);
     }
     if (e.tri == DISTANT || e.tri == ENVIRONMENT) {
         var d = e;
+        var pdf_dir = 1.0;
         if (e.tri == ENVIRONMENT) {
-            // The direction light arrives from, uniform on the sphere; the disk behind the
-            // scene across it.
-            d.axis = -uniform_sphere(u);
+            // The direction light arrives from, by the environment's sampling (black where it
+            // has none); the disk behind the scene across it.
+            let es = env_sample(u);
+            d.axis = -es.w;
+            d.radiance = select(vec3<f32>(0.0), es.radiance, es.pdf > 0.0);
+            pdf_dir = es.pdf;
             d.position = e.position - d.axis * e.cutoff;
             u = vec2<f32>(rnd(), rnd());
         }
@@ -58,7 +63,7 @@ fn sample_light_point() -> LightPoint {
         let r = d.cutoff * sqrt(u.x);
         let phi = 2.0 * PI * u.y;
         let q = d.position + frame(d.axis) * vec3<f32>(r * cos(phi), r * sin(phi), 0.0);
-        return LightPoint(d, q, vec3<f32>(0.0), vec3<f32>(0.0), e.tri == DISTANT, true);
+        return LightPoint(d, q, vec3<f32>(0.0), vec3<f32>(0.0), e.tri == DISTANT, true, pdf_dir);
     }
     let t = tris[e.tri];
     if (u.x + u.y > 1.0) {
@@ -66,7 +71,7 @@ fn sample_light_point() -> LightPoint {
     }
     let q = t.v0 + (t.v1 - t.v0) * u.x + (t.v2 - t.v0) * u.y;
     let ng = normalize(cross(t.v1 - t.v0, t.v2 - t.v0));
-    return LightPoint(e, q, ng, shading_normal(e.tri, t, ng, u), false, false);
+    return LightPoint(e, q, ng, shading_normal(e.tri, t, ng, u), false, false, 1.0);
 }
 
 // Mitsuba 3's spot falloff: full inside the beam, linear in angle to zero at the cutoff.
@@ -107,8 +112,8 @@ fn emission_pdf(lp: LightPoint, w: vec3<f32>) -> f32 {
 fn sample_emission(lp: LightPoint) -> vec4<f32> {
     let u = vec2<f32>(rnd(), rnd());
     if (lp.distant) {
-        // A delta in direction, or the environment's uniform density.
-        return vec4<f32>(lp.e.axis, select(0.25 * INV_PI, 1.0, lp.delta));
+        // A delta in direction (1), or the environment's density.
+        return vec4<f32>(lp.e.axis, lp.pdf_dir);
     }
     if (lp.delta) {
         let cos_t = 1.0 - u.x * (1.0 - lp.e.cos_cutoff);
@@ -121,8 +126,8 @@ fn sample_emission(lp: LightPoint) -> vec4<f32> {
     return vec4<f32>(frame(lp.ns) * local, local.z * INV_PI);
 }
 
-// The light point's density: per unit area on area lights and a directional light's disk,
-// the pick alone on point-like ones.
+// The light point's density: per unit area on area lights and on a distant light's disk, the
+// pick alone on point-like ones.
 fn origin_density(lp: LightPoint) -> f32 {
     return select(lp.e.pick / lp.e.area, lp.e.pick, lp.delta && !lp.distant);
 }
@@ -132,7 +137,7 @@ fn origin_density(lp: LightPoint) -> f32 {
 // It is also L_0, the light side's density of the path's first vertex, in the MIS.
 fn nee_density(lp: LightPoint) -> f32 {
     if (lp.distant && !lp.delta) {
-        return lp.e.pick * 0.25 * INV_PI;
+        return lp.e.pick * lp.pdf_dir;
     }
     return select(lp.e.pick / lp.e.area, lp.e.pick, lp.delta);
 }

@@ -3,6 +3,7 @@ shards that merge into the single render."""
 
 import _thread
 import pickle
+import signal
 import subprocess
 import threading
 import time
@@ -168,11 +169,17 @@ def test_progress_callback_and_its_exception(c01):
 def test_ctrl_c_stops_a_render(c01):
     """KeyboardInterrupt while the GIL is released: the render stops within a pass."""
     scene = small(c01, 64, 64)
-    threading.Timer(0.5, _thread.interrupt_main).start()
-    start = time.time()
-    with pytest.raises(KeyboardInterrupt):
-        skelight.render(scene, time=60.0)
-    assert time.time() - start < 10
+    # A shell starts background jobs with SIGINT ignored, and then Python installs no handler
+    # and interrupt_main does nothing: install Python's own for the test.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        threading.Timer(0.5, _thread.interrupt_main).start()
+        start = time.time()
+        with pytest.raises(KeyboardInterrupt):
+            skelight.render(scene, time=60.0)
+        assert time.time() - start < 10
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_skeleton_arrays(c01):

@@ -38,6 +38,10 @@ pub trait Environment: std::fmt::Debug + Send + Sync {
     /// Radiance integrated over all directions, ∫ L dω, averaged over the channels (for
     /// choosing lights by power).
     fn radiance_integral(&self) -> f32;
+    /// The lat-long map this environment is, if it is one (the GPU renders these alone).
+    fn as_lat_long(&self) -> Option<&EnvMap> {
+        None
+    }
 }
 
 /// Lat-long environment map with Mitsuba 3's conventions and luminance importance sampling.
@@ -72,6 +76,17 @@ impl EnvMap {
         let distribution = Distribution2D::new(&weights, w, rows);
         let mean = image.mean() * scale;
         EnvMap { image, scale, to_world, distribution, mean }
+    }
+
+    /// The map's texels (linear RGB, unscaled), its scale and its orientation.
+    pub fn image(&self) -> &Image {
+        &self.image
+    }
+    pub fn scale(&self) -> f32 {
+        self.scale
+    }
+    pub fn to_world(&self) -> &Transform {
+        &self.to_world
     }
 
     fn texel(&self, x: usize, y: usize) -> Rgb {
@@ -140,6 +155,10 @@ impl Environment for EnvMap {
 
     fn radiance_integral(&self) -> f32 {
         4.0 * PI * self.mean.mean()
+    }
+
+    fn as_lat_long(&self) -> Option<&EnvMap> {
+        Some(self)
     }
 }
 
