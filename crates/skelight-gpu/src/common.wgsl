@@ -85,6 +85,7 @@ const COATED_DIFFUSE: u32 = 8u;
 const TWO_SIDED: u32 = 1u;
 const BECKMANN: u32 = 2u;     // microfacets: Beckmann, else GGX
 const NONLINEAR: u32 = 4u;    // plastics: Mitsuba's `nonlinear` internal scattering
+const TEXTURED_SPECULAR: u32 = 8u;  // the texture replaces `transmittance` (phong's specular)
 
 struct Emitter {
     radiance: vec3<f32>,   // area lights: radiance; point and spot lights: intensity
@@ -359,7 +360,11 @@ fn surface_at(o: vec3<f32>, d: vec3<f32>, h: Hit) -> Surface {
     if (m.texture != NONE || m.bump != NONE) {
         let uv = uv_at(h.tri, h.b);
         if (m.texture != NONE) {
-            m.reflectance = texture_eval(m.texture, uv);
+            if ((m.flags & TEXTURED_SPECULAR) != 0u) {
+                m.transmittance = texture_eval(m.texture, uv);
+            } else {
+                m.reflectance = texture_eval(m.texture, uv);
+            }
         }
         if (m.bump != NONE) {
             ns = bumped(m, h.tri, ns, uv);

@@ -64,6 +64,8 @@ pub const COATED_DIFFUSE: u32 = 8;
 pub const TWO_SIDED: u32 = 1;
 pub const BECKMANN: u32 = 2;
 pub const NONLINEAR: u32 = 4;
+/// The texture replaces the specular colour (`transmittance`) rather than the main one.
+pub const TEXTURED_SPECULAR: u32 = 8;
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug, PartialEq)]
@@ -192,8 +194,8 @@ pub struct Flat {
 /// What the GPU renders today; anything else is refused by [`flatten`].
 pub const FEATURES: &str = "BSDFs diffuse, roughdiffuse, conductor, roughconductor, \
     dielectric, plastic, roughplastic, phong and coating over diffuse, isotropic roughness, \
-    one- or two-sided alike, the main colour constant or a bitmap or checkerboard texture; bump \
-    maps; area lights on triangle meshes, point, spot and directional lights, a constant or \
+    one- or two-sided alike, the main colour (or phong's specular one) constant or a bitmap or \
+    checkerboard texture; bump maps; area lights on triangle meshes, point, spot and directional lights, a constant or \
     lat-long environment; shading normals; pinhole cameras; box and tent filters. Not yet: alpha \
     masks, exact spheres, normal maps, other BSDFs, sun and sky";
 
@@ -270,12 +272,26 @@ fn material(bsdf: &Bsdf, name: &str, tables: &mut Tables) -> Result<Material, Gp
                 ..colour(p.diffuse, tables)?
             }
         }
-        Bsdf::Phong(p) => Material {
-            transmittance: constant(&p.specular)?,
-            eta: [p.specular_weight, 0.0, 0.0],
-            alpha: p.exponent,
-            kind: PHONG,
-            ..colour(&p.diffuse, tables)?
+        // Either colour may be a texture (a constant diffuse under a textured specular, as
+        // sibenik's floor in the seeds' configuration), not both.
+        Bsdf::Phong(p) => match (constant_value(&p.diffuse), tables.texture(&p.specular)) {
+            (Some(diffuse), Some(at)) => Material {
+                reflectance: diffuse,
+                transmittance: [1.0; 3],
+                texture: at,
+                flags: TEXTURED_SPECULAR,
+                eta: [p.specular_weight, 0.0, 0.0],
+                alpha: p.exponent,
+                kind: PHONG,
+                ..Material::default()
+            },
+            _ => Material {
+                transmittance: constant(&p.specular)?,
+                eta: [p.specular_weight, 0.0, 0.0],
+                alpha: p.exponent,
+                kind: PHONG,
+                ..colour(&p.diffuse, tables)?
+            },
         },
         Bsdf::Coating(c) => match c.nested.as_ref() {
             Bsdf::Diffuse(d) => Material {

@@ -262,7 +262,8 @@ fn rough_metal(kind: skelight::material::microfacet::MicrofacetType, alpha: f32)
 }
 
 /// The BSDFs no conformance scene has (Phong, Oren–Nayar, Beckmann microfacets) and a
-/// two-sided glossy one: c11 with its white walls Phong, its coloured walls Oren–Nayar and its
+/// two-sided glossy one: c11 with its white walls Phong (the specular colour a texture), its
+/// coloured walls Oren–Nayar and its
 /// smooth plastic ball a two-sided Beckmann conductor, GPU ibpt against the CPU's (each BSDF
 /// covers much of the image, so that a wrong lobe shows).
 #[test]
@@ -278,8 +279,14 @@ fn gpu_ibpt_matches_cpu_ibpt_with_phong_oren_nayar_and_beckmann() {
                 let c = rough_metal(MicrofacetType::Beckmann, 0.2);
                 Bsdf::TwoSided(Box::new(c.clone()), Box::new(c))
             }
+            // The specular colour a checkerboard (as sibenik's floor in the seeds' configuration).
             Bsdf::Diffuse(_) if m.name == "white" => {
-                Bsdf::Phong(Phong::new(rgb(0.3, 0.3, 0.3), rgb(0.4, 0.4, 0.4), 10.0))
+                let checker = Texture::Checkerboard {
+                    color0: skelight::color::Rgb::splat(0.5),
+                    color1: skelight::color::Rgb { r: 0.1, g: 0.3, b: 0.2 },
+                    to_uv: skelight::texture::UvTransform::scale_offset(4.0, 4.0, 0.0, 0.0),
+                };
+                Bsdf::Phong(Phong::new(rgb(0.3, 0.3, 0.3), checker, 10.0))
             }
             Bsdf::Diffuse(d) if m.name == "red" || m.name == "green" => {
                 Bsdf::RoughDiffuse(RoughDiffuse { reflectance: d.reflectance.clone(), alpha: 0.6 })
