@@ -357,6 +357,10 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     let mut power = Vec::new();
     let mut tables = Tables::default();
     let mut environment_map = NONE;
+    // Distant lights start the light pass's rays on a disk of the emission sphere's radius
+    // (the CPU's sample_le): its centre, radius and area.
+    let (sphere_center, disk_radius) = scene.emission_sphere();
+    let disk_area = std::f32::consts::PI * disk_radius * disk_radius;
     for light in &scene.lights {
         let rgb = |c: Rgb| [c.r, c.g, c.b];
         let p = |v: Vec3| [v.x, v.y, v.z];
@@ -387,21 +391,18 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
                 (e, 2.0 * std::f64::consts::PI * (1.0 - cos_cutoff as f64))
             }
             Light::Directional { direction, irradiance } => {
-                // As the CPU's sample_le: rays start uniformly on a disk of the emission
-                // sphere's radius, behind the scene, perpendicular to the direction.
-                let (center, radius) = scene.emission_sphere();
-                let area = std::f32::consts::PI * radius * radius;
+                // The disk behind the scene, perpendicular to the direction.
                 let e = Emitter {
                     radiance: rgb(irradiance),
                     tri: DISTANT,
-                    position: p(center - direction * radius),
+                    position: p(sphere_center - direction * disk_radius),
                     axis: p(direction),
-                    area,
-                    cutoff: radius,
+                    area: disk_area,
+                    cutoff: disk_radius,
                     ..Emitter::default()
                 };
                 // "Power" as irradiance × the disk's area (the pick's weight only).
-                (e, area as f64)
+                (e, disk_area as f64)
             }
             Light::Constant { .. } | Light::Env(_) => {
                 if emitters.iter().any(|e: &Emitter| e.tri == ENVIRONMENT) {
@@ -420,18 +421,16 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
                     Light::Constant { radiance } => *radiance,
                     _ => unreachable!(),
                 };
-                let (center, radius) = scene.emission_sphere();
-                let area = std::f32::consts::PI * radius * radius;
                 let e = Emitter {
                     radiance: rgb(radiance),
                     tri: ENVIRONMENT,
-                    position: p(center),
-                    area,
-                    cutoff: radius,
+                    position: p(sphere_center),
+                    area: disk_area,
+                    cutoff: disk_radius,
                     ..Emitter::default()
                 };
                 // As the CPU's power: π × the disk's area × radiance.
-                (e, std::f64::consts::PI * area as f64)
+                (e, std::f64::consts::PI * disk_area as f64)
             }
         };
         emitters.push(emitter);
