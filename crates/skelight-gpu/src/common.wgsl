@@ -69,7 +69,7 @@ struct Material {
     texture: u32,              // the texture of `reflectance` (a descriptor in `data`), or NONE
     bump: u32,                 // a bump map's height texture, or NONE
     bump_scale: f32,
-    pad: u32,
+    mask: u32,                 // an opacity mask's texture (channel mean), or NONE: opaque
 }
 
 const DIFFUSE: u32 = 0u;
@@ -225,9 +225,34 @@ fn hit_tri(t: Tri, o: vec3<f32>, r: RayShear) -> vec3<f32> {
     return vec3<f32>(t_scaled * inv, v * inv, w * inv);
 }
 
-// Closest hit before t_max (any hit when `first_hit`).
-fn intersect(o: vec3<f32>, d: vec3<f32>, t_max: f32, first_hit: bool) -> Hit {
-    rays = rays + 1u;
+// Whether an opacity mask lets the ray through at barycentrics `b` of triangle k: as the
+// CPU's AlphaFilter, a mask of opacity a is hit with probability a, the threshold a hash of
+// the ray (so that one ray always gets one answer).
+// `Tri::flags`: vertex normals; an opacity mask on the material (as flatten.rs).
+const SMOOTH: u32 = 1u;
+const MASKED: u32 = 2u;
+
+fn masked_out(tri: Tri, k: u32, b: vec2<f32>, o: vec3<f32>, d: vec3<f32>) -> bool {
+    let mask = materials[tri.material].mask;
+    let c = texture_eval(mask, uv_at(k, b));
+    let a = (c.x + c.y + c.z) / 3.0;
+    if (a >= 1.0) {
+        return false;
+    }
+    if (a <= 0.0) {
+        return true;
+    }
+    let ob = bitcast<vec3<u32>>(o);
+    let db = bitcast<vec3<u32>>(d);
+    let h = lowbias32(ob.x ^ lowbias32(ob.y ^ lowbias32(ob.z ^ lowbias32(db.x ^ lowbias32(db.y ^ lowbias32(db.z ^ lowbias32(k)))))));
+    return f32(h >> 8u) * (1.0 / 16777216.0) >= a;
+}
+
+// The BVH traversal: the closest hit in (t_min, t_max), or any hit when `first_hit`. Masked
+// triangles count as opaque here (so the mask's texture lookup stays out of this innermost
+// loop) except that one never ends an any-hit search early: `intersect` tests the mask on the
+// closest of them afterwards.
+fn traverse(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, first_hit: bool) -> Hit {
     var best = Hit(t_max, NONE, vec2<f32>(0.0));
     let inv_d = 1.0 / d;
     let shear = ray_shear(d);
@@ -246,10 +271,11 @@ fn intersect(o: vec3<f32>, d: vec3<f32>, t_max: f32, first_hit: bool) -> Hit {
             continue;
         }
         for (var k = n.first; k < n.first + n.count; k = k + 1u) {
-            let r = hit_tri(tris[k], o, shear);
-            if (r.x > 0.0 && r.x < best.t) {
+            let tri = tris[k];
+            let r = hit_tri(tri, o, shear);
+            if (r.x > t_min && r.x < best.t) {
                 best = Hit(r.x, k, r.yz);
-                if (first_hit) {
+                if (first_hit && (tri.flags & MASKED) == 0u) {
                     return best;
                 }
             }
@@ -257,6 +283,31 @@ fn intersect(o: vec3<f32>, d: vec3<f32>, t_max: f32, first_hit: bool) -> Hit {
         i = n.miss;
     }
     return best;
+}
+
+// At most this many masked surfaces let one ray through (a bound, so that no ray loops forever;
+// the layer past it counts as hit).
+const MASK_LAYERS: u32 = 64u;
+
+// Closest hit before t_max (any hit when `first_hit`), opacity masks honoured: when the hit is
+// a masked triangle that lets the ray through, the traversal goes on from just past it (the
+// same ray, so the mask's hash and the watertight test see the same origin and direction).
+fn intersect(o: vec3<f32>, d: vec3<f32>, t_max: f32, first_hit: bool) -> Hit {
+    rays = rays + 1u;
+    var t_min = 0.0;
+    var hit = traverse(o, d, t_min, t_max, first_hit);
+    for (var layer = 0u; layer < MASK_LAYERS; layer = layer + 1u) {
+        if (hit.tri == NONE) {
+            break;
+        }
+        let tri = tris[hit.tri];
+        if ((tri.flags & MASKED) == 0u || !masked_out(tri, hit.tri, hit.b, o, d)) {
+            break;
+        }
+        t_min = hit.t;
+        hit = traverse(o, d, t_min, t_max, first_hit);
+    }
+    return hit;
 }
 
 fn frame(n: vec3<f32>) -> mat3x3<f32> {
@@ -301,7 +352,7 @@ fn spawn(p: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
 
 // The shading normal at barycentrics `b` (the geometric one without vertex normals).
 fn shading_normal(k: u32, t: Tri, ng: vec3<f32>, b: vec2<f32>) -> vec3<f32> {
-    if ((t.flags & 1u) == 0u) {
+    if ((t.flags & SMOOTH) == 0u) {
         return ng;
     }
     let a = 6u * k;

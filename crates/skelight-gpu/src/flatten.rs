@@ -18,6 +18,9 @@ use crate::tables::{constant_value, Tables};
 use crate::GpuError;
 
 pub const NONE: u32 = u32::MAX;
+/// `Tri::flags`: the triangle has vertex normals; its material has an opacity mask.
+pub const SMOOTH: u32 = 1;
+pub const MASKED: u32 = 2;
 /// `Emitter::tri` of a directional light.
 pub const DISTANT: u32 = u32::MAX - 1;
 /// `Emitter::tri` of a constant environment.
@@ -92,7 +95,8 @@ pub struct Material {
     /// A bump map's height texture, or [`NONE`].
     pub bump: u32,
     pub bump_scale: f32,
-    pub pad: u32,
+    /// The opacity mask's texture (its channel mean is the opacity), or [`NONE`]: opaque.
+    pub mask: u32,
 }
 
 impl Default for Material {
@@ -109,7 +113,7 @@ impl Default for Material {
             texture: NONE,
             bump: NONE,
             bump_scale: 0.0,
-            pad: 0,
+            mask: NONE,
         }
     }
 }
@@ -195,9 +199,9 @@ pub struct Flat {
 pub const FEATURES: &str = "BSDFs diffuse, roughdiffuse, conductor, roughconductor, \
     dielectric, plastic, roughplastic, phong and coating over diffuse, isotropic roughness, \
     one- or two-sided alike, the main colour (or phong's specular one) constant or a bitmap or \
-    checkerboard texture; bump maps; area lights on triangle meshes, point, spot and directional lights, a constant or \
-    lat-long environment; shading normals; pinhole cameras; box and tent filters. Not yet: alpha \
-    masks, exact spheres, normal maps, other BSDFs, sun and sky";
+    checkerboard texture; bump maps; opacity masks; area lights on triangle meshes, point, spot and directional lights, a constant or \
+    lat-long environment; shading normals; pinhole cameras; box and tent filters. Not yet: exact \
+    spheres, normal maps, other BSDFs, sun and sky";
 
 fn unsupported(what: String) -> GpuError {
     GpuError::Unsupported(format!("{what}; the GPU renders {FEATURES}"))
@@ -461,8 +465,12 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     let mut attributes = Vec::new();
     let mut emitting: Vec<(u32, Rgb, f32)> = Vec::new();
     for mesh in &scene.meshes {
-        if mesh.alpha.is_some() {
-            return Err(unsupported(format!("mesh '{}' has an alpha mask", mesh.name)));
+        // A masked mesh gets its own copy of its material, carrying the mask.
+        let mut material = mesh.material;
+        if let Some(alpha) = &mesh.alpha {
+            let mask = tables.texture(alpha).unwrap_or_else(|| tables.constant_texture(constant_value(alpha)));
+            materials.push(Material { mask, ..materials[mesh.material as usize] });
+            material = materials.len() as u32 - 1;
         }
         if mesh.sphere.is_some() && mesh.emission.is_none() {
             return Err(unsupported(format!("mesh '{}' is an exact sphere", mesh.name)));
@@ -477,7 +485,8 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
             }
             let p = |v: Vec3| [v.x, v.y, v.z];
             let smooth = !mesh.normals.is_empty();
-            tris.push(Tri { v0: p(a), material: mesh.material, v1: p(b), emitter, v2: p(c), flags: smooth as u32 });
+            let flags = if smooth { SMOOTH } else { 0 } | if mesh.alpha.is_some() { MASKED } else { 0 };
+            tris.push(Tri { v0: p(a), material, v1: p(b), emitter, v2: p(c), flags });
             // Without texture coordinates uv are the barycentrics (as the CPU's uv_at).
             let corners = [vec2(0.0, 0.0), vec2(1.0, 0.0), vec2(0.0, 1.0)];
             let uv = |j: usize| if mesh.uvs.is_empty() { corners[j] } else { mesh.uvs[mesh.indices[i][j] as usize] };

@@ -70,6 +70,20 @@ impl Tables {
         Some(self.push(&words))
     }
 
+    /// A constant as a texture descriptor (a checkerboard of one colour), where a kernel
+    /// reads a texture unconditionally (opacity masks).
+    pub fn constant_texture(&mut self, value: Option<[f32; 3]>) -> u32 {
+        let c = value.unwrap_or([1.0; 3]);
+        let mut words = [0.0f32; DESCRIPTOR_WORDS];
+        words[0] = f32::from_bits(TEX_CHECKER);
+        words[4] = 1.0;
+        words[8] = 1.0;
+        words[10] = 1.0;
+        words[11..14].copy_from_slice(&c);
+        words[14..17].copy_from_slice(&c);
+        self.push(&words)
+    }
+
     fn texels(&mut self, bitmap: &Arc<Bitmap>) -> u32 {
         if let Some(&at) = self.texels.get(&Arc::as_ptr(bitmap)) {
             return at;
