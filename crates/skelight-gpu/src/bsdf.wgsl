@@ -195,6 +195,114 @@ fn coat_jacobian(m: Material, wo: vec3<f32>, wo_in: vec3<f32>) -> f32 {
     return wo.z / (m.eta.x * m.eta.x * wo_in.z);
 }
 
+// ---- Rough dielectric (Walter et al. 2007), as dielectric.rs's RoughDielectric ----
+// In the frame of the unflipped shading normal: wi.z < 0 means the walk arrives from inside.
+// Both directions are mirrored to the outside then, with the relative index inverted: the
+// model is symmetric under that exchange, as the CPU's generalised half vector is.
+
+struct RoughPair {
+    wi: vec3<f32>,
+    wo: vec3<f32>,
+    eta: f32,              // η across the interface from wi's side
+    h: vec3<f32>,          // the generalised half vector, facing wi's side
+    etap: f32,             // 1 for a reflection, else eta; 0: no microfacet joins them
+}
+
+fn rough_pair(m: Material, wi_in: vec3<f32>, wo_in: vec3<f32>) -> RoughPair {
+    let inside = wi_in.z < 0.0;
+    let wi = select(wi_in, -wi_in, inside);
+    let wo = select(wo_in, -wo_in, inside);
+    let eta = select(m.eta.x, 1.0 / m.eta.x, inside);
+    var r = RoughPair(wi, wo, eta, vec3<f32>(0.0), 0.0);
+    if (wi.z == 0.0 || wo.z == 0.0) {
+        return r;
+    }
+    let etap = select(eta, 1.0, wo.z > 0.0);
+    var h = wo * etap + wi;
+    if (dot(h, h) == 0.0) {
+        return r;
+    }
+    h = normalize(h);
+    h = select(h, -h, h.z < 0.0);
+    // Back-facing microfacets contribute nothing.
+    if (dot(h, wo) * wo.z < 0.0 || dot(h, wi) < 0.0) {
+        return r;
+    }
+    r.h = h;
+    r.etap = etap;
+    return r;
+}
+
+// f(wi, wo)·|cos θo|; transmitted radiance (not importance) compressed by 1/η'².
+fn rough_dielectric_eval(m: Material, wi_in: vec3<f32>, wo_in: vec3<f32>, radiance: bool) -> vec3<f32> {
+    let r = rough_pair(m, wi_in, wo_in);
+    if (r.etap == 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let h = r.h;
+    let f = fresnel_dielectric(dot(r.wi, h), r.eta);
+    let dg = mf_d(m, h) * mf_g1(m, r.wi, h) * mf_g1(m, r.wo, h);
+    if (r.wo.z > 0.0) {
+        return m.reflectance * (f * dg / (4.0 * r.wi.z));
+    }
+    let denom = sq(dot(r.wo, h) + dot(r.wi, h) / r.etap) * r.wi.z;
+    let ft = (1.0 - f) * dg * abs(dot(r.wo, h) * dot(r.wi, h)) / denom;
+    return m.transmittance * (ft * select(1.0, 1.0 / (r.etap * r.etap), radiance));
+}
+
+// The density of rough_dielectric_sample's wo: the visible normal's, through the reflection
+// or refraction Jacobian, times the Fresnel choice.
+fn rough_dielectric_pdf(m: Material, wi_in: vec3<f32>, wo_in: vec3<f32>) -> f32 {
+    let r = rough_pair(m, wi_in, wo_in);
+    if (r.etap == 0.0) {
+        return 0.0;
+    }
+    let h = r.h;
+    let f = fresnel_dielectric(dot(r.wi, h), r.eta);
+    let pdf_h = mf_pdf(m, r.wi, h);
+    if (r.wo.z > 0.0) {
+        return pdf_h / (4.0 * abs(dot(r.wo, h))) * f;
+    }
+    return pdf_h * abs(dot(r.wo, h)) / sq(dot(r.wo, h) + dot(r.wi, h) / r.etap) * (1.0 - f);
+}
+
+// A microfacet normal seen from wi, then reflection or refraction by its Fresnel term.
+fn rough_dielectric_sample(s: Surface, wi_world: vec3<f32>, radiance: bool) -> BsdfSample {
+    let m = s.material;
+    let wi_in = local_of(s.ns, wi_world);
+    if (wi_in.z == 0.0) {
+        return no_sample();
+    }
+    let inside = wi_in.z < 0.0;
+    let wi = select(wi_in, -wi_in, inside);
+    let eta = select(m.eta.x, 1.0 / m.eta.x, inside);
+    let u = rnd();
+    let h = mf_sample(m, wi, vec2<f32>(rnd(), rnd()));
+    let c = dot(wi, h);
+    if (!(mf_pdf(m, wi, h) > 0.0) || c <= 0.0) {
+        return no_sample();
+    }
+    var wo = reflect_about(wi, h);
+    if (u >= fresnel_dielectric(c, eta)) {
+        let sin2_t = max(1.0 - c * c, 0.0) / (eta * eta);
+        if (sin2_t >= 1.0) {
+            return no_sample();
+        }
+        wo = -wi / eta + h * (c / eta - sqrt(1.0 - sin2_t));
+        if (wo.z >= 0.0) {
+            return no_sample();
+        }
+    } else if (wo.z <= 0.0) {
+        return no_sample();
+    }
+    let wo_in = select(wo, -wo, inside);
+    let pdf = rough_dielectric_pdf(m, wi_in, wo_in);
+    if (!(pdf > 0.0) || !finite(pdf)) {
+        return no_sample();
+    }
+    return BsdfSample(frame(s.ns) * wo_in, rough_dielectric_eval(m, wi_in, wo_in, radiance) / pdf, pdf, true);
+}
+
 // ---- The BSDF interface, in the local frame ----
 
 fn eval_local(m: Material, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
@@ -295,9 +403,13 @@ fn pdf_local(m: Material, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     }
 }
 
-fn bsdf_eval(s: Surface, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
+// `radiance`: the camera's walk (as bsdf_sample's).
+fn bsdf_eval(s: Surface, wi: vec3<f32>, wo: vec3<f32>, radiance: bool) -> vec3<f32> {
     if (!has_smooth(s.material)) {
         return vec3<f32>(0.0);
+    }
+    if (s.material.kind == ROUGH_DIELECTRIC) {
+        return rough_dielectric_eval(s.material, local_of(s.ns, wi), local_of(s.ns, wo), radiance);
     }
     return eval_local(s.material, local_of(s.n, wi), local_of(s.n, wo));
 }
@@ -305,6 +417,9 @@ fn bsdf_eval(s: Surface, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
 fn bsdf_pdf(s: Surface, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     if (!has_smooth(s.material)) {
         return 0.0;
+    }
+    if (s.material.kind == ROUGH_DIELECTRIC) {
+        return rough_dielectric_pdf(s.material, local_of(s.ns, wi), local_of(s.ns, wo));
     }
     return pdf_local(s.material, local_of(s.n, wi), local_of(s.n, wo));
 }
@@ -360,6 +475,9 @@ fn bsdf_sample(s: Surface, wi_world: vec3<f32>, radiance: bool) -> BsdfSample {
         let wo = -wi_world / eta + n * (c / eta - sqrt(1.0 - sin2_t));
         let scale = select(1.0, 1.0 / (eta * eta), radiance);
         return BsdfSample(wo, m.transmittance * scale, 0.0, true);
+    }
+    if (m.kind == ROUGH_DIELECTRIC) {
+        return rough_dielectric_sample(s, wi_world, radiance);
     }
     let wi = local_of(s.n, wi_world);
     if (wi.z <= 0.0) {

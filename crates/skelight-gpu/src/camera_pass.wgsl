@@ -10,7 +10,9 @@
 // densities are known (y_j's L needs y_{j+1}'s BSDF sampled from the light's side, known once
 // the walk has left y_{j+1}). Strategies, with their density relative to an emitter hit:
 // next-event estimation L_0/C_0 (x_1 not specular), light tracing Π_{i<k} L_i/C_i (x_{k−1}
-// not specular); the light hitting a pinhole has density 0.
+// not specular); the light hitting a pinhole has density 0, and a thin lens's aperture is not
+// a strategy here either (light paths pass through it; the weights omit it, still summing
+// to 1 over the strategies used).
 
 // What the environment sends along a camera walk that leaves the scene after y_m (m ≥ 0
 // surface vertices) in direction `d` sampled with solid-angle density `pdf_dir` (0: through
@@ -41,14 +43,23 @@ fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
         return vec3<f32>(0.0);   // no segment at all: black, as the CPU
     }
     let bidir = P.bidirectional != 0u;
-    let local = vec3<f32>((1.0 - 2.0 * pos.x / f32(P.width)) * P.tan_half.x,
-                          (1.0 - 2.0 * pos.y / f32(P.height)) * P.tan_half.y, 1.0);
+    // The direction through the film point from the lens centre, per unit depth; a thin
+    // lens's ray leaves a lens point towards where that one crosses the plane of focus (the
+    // CPU's sample_ray). The lens point is the path's camera vertex; the ray starts at the
+    // near plane.
+    var dl = vec3<f32>((1.0 - 2.0 * pos.x / f32(P.width)) * P.tan_half.x,
+                       (1.0 - 2.0 * pos.y / f32(P.height)) * P.tan_half.y, 1.0);
+    let lens = lens_sample();
+    if (P.aperture_radius > 0.0) {
+        dl = dl * P.focus_distance - lens;
+    }
     let to_world = mat3x3<f32>(P.cam_x.xyz, P.cam_y.xyz, P.cam_z.xyz);
-    var o = P.cam_pos.xyz + to_world * (local * P.near_clip);
-    var d = normalize(to_world * local);
+    var o = P.cam_pos.xyz + to_world * (lens + dl * (P.near_clip / dl.z));
+    var d = normalize(to_world * dl);
+    // Per solid angle at the lens point, pinhole or thin lens alike: 1 / (A cos³).
     let cos_cam = dot(d, P.forward.xyz);
     var pdf_dir = 1.0 / (film_area() * cos_cam * cos_cam * cos_cam);   // 0: specular
-    var prev_p = P.cam_pos.xyz;
+    var prev_p = P.cam_pos.xyz + to_world * lens;
     var l = vec3<f32>(0.0);
     var beta = vec3<f32>(1.0);
     var m = 0;                   // the current vertex is y_m (m segments from the lens)
@@ -116,7 +127,7 @@ fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
             let c = connect_to_light(lp, s.p);
             let wl = c.w;
             let le = emitted(lp, -wl);
-            let fcos = bsdf_eval(s, wi, wl);
+            let fcos = bsdf_eval(s, wi, wl, true);
             if (max(le.x, max(le.y, le.z)) > 0.0 && c.g > 0.0 && max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
                 // Aimed at q from the offset origin itself (as the CPU's spawn_ray_to): the
                 // offset would otherwise shift the ray beside q, into a small emitter's

@@ -32,7 +32,11 @@ struct Params {
     filter_radius: f32,    // the tent filter's radius (pixels); 0: the box filter
     environment: u32,      // the environment's emitter, or NONE
     environment_map: u32,  // its lat-long map's descriptor in `data`, or NONE: constant
+    aperture_radius: f32,  // the thin lens's (0: a pinhole)
+    focus_distance: f32,
     pad2: u32,
+    pad3: u32,
+    pad4: u32,
 }
 
 struct Node {
@@ -81,6 +85,7 @@ const ROUGH_PLASTIC: u32 = 5u;
 const PHONG: u32 = 6u;
 const ROUGH_DIFFUSE: u32 = 7u;
 const COATED_DIFFUSE: u32 = 8u;
+const ROUGH_DIELECTRIC: u32 = 9u;
 
 const TWO_SIDED: u32 = 1u;
 const BECKMANN: u32 = 2u;     // microfacets: Beckmann, else GGX
@@ -388,6 +393,27 @@ fn seed_rng(px: u32, py: u32, sample: u32, stream: u32) {
 
 fn film_area() -> f32 {
     return 4.0 * P.tan_half.x * P.tan_half.y;
+}
+
+// A point of the thin lens's aperture in camera space (z = 0), uniform over the disk by
+// Shirley and Chiu's concentric map (as the CPU's sampling::concentric_disk); a pinhole's
+// centre without drawing random numbers.
+fn lens_sample() -> vec3<f32> {
+    if (P.aperture_radius <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let a = 2.0 * rnd() - 1.0;
+    let b = 2.0 * rnd() - 1.0;
+    if (a == 0.0 && b == 0.0) {
+        return vec3<f32>(0.0);
+    }
+    var r = b;
+    var phi = 0.5 * PI - 0.25 * PI * (a / b);
+    if (a * a > b * b) {
+        r = a;
+        phi = 0.25 * PI * (b / a);
+    }
+    return vec3<f32>(r * cos(phi), r * sin(phi), 0.0) * P.aperture_radius;
 }
 
 // Where a ray hit: the point, its normals, and the normal on the side it arrived from (the

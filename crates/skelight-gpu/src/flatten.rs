@@ -62,6 +62,7 @@ pub const ROUGH_PLASTIC: u32 = 5;
 pub const PHONG: u32 = 6;
 pub const ROUGH_DIFFUSE: u32 = 7;
 pub const COATED_DIFFUSE: u32 = 8;
+pub const ROUGH_DIELECTRIC: u32 = 9;
 
 /// Material flags.
 pub const TWO_SIDED: u32 = 1;
@@ -177,7 +178,10 @@ pub struct Params {
     pub environment: u32,
     /// Its lat-long map's descriptor in the data buffer, or [`NONE`] for a constant one.
     pub environment_map: u32,
-    pub pad: [u32; 1],
+    /// The thin lens's aperture radius (0: a pinhole) and focus distance.
+    pub aperture_radius: f32,
+    pub focus_distance: f32,
+    pub pad: [u32; 3],
 }
 
 /// Everything the kernels read of a scene.
@@ -197,10 +201,11 @@ pub struct Flat {
 
 /// What the GPU renders today; anything else is refused by [`flatten`].
 pub const FEATURES: &str = "BSDFs diffuse, roughdiffuse, conductor, roughconductor, \
-    dielectric, plastic, roughplastic, phong and coating over diffuse, isotropic roughness, \
+    dielectric, roughdielectric, plastic, roughplastic, phong and coating over diffuse, \
+    isotropic roughness, \
     one- or two-sided alike, the main colour (or phong's specular one) constant or a bitmap or \
     checkerboard texture; bump maps; opacity masks; area lights on triangle meshes, point, spot and directional lights, a constant or \
-    lat-long environment; shading normals; pinhole cameras; box and tent filters. Not yet: exact \
+    lat-long environment; shading normals; pinhole and thin-lens cameras; box and tent filters. Not yet: exact \
     spheres, normal maps, other BSDFs, sun and sky";
 
 fn unsupported(what: String) -> GpuError {
@@ -252,6 +257,18 @@ fn material(bsdf: &Bsdf, name: &str, tables: &mut Tables) -> Result<Material, Gp
             flags: TWO_SIDED,
             ..Material::default()
         },
+        Bsdf::RoughDielectric(d) => {
+            let (alpha, flags) = microfacet(&d.distribution)?;
+            Material {
+                reflectance: rgb(d.specular_reflectance),
+                transmittance: rgb(d.specular_transmittance),
+                eta: [d.eta, 0.0, 0.0],
+                kind: ROUGH_DIELECTRIC,
+                alpha,
+                flags: flags | TWO_SIDED,
+                ..Material::default()
+            }
+        }
         Bsdf::Plastic(_) | Bsdf::RoughPlastic(_) => {
             let p = match bsdf {
                 Bsdf::Plastic(p) => p.parts(),
@@ -316,7 +333,7 @@ fn material(bsdf: &Bsdf, name: &str, tables: &mut Tables) -> Result<Material, Gp
                 material(b, name, &mut scratch).map(|m| (m, scratch.data))
             };
             let f = side(front)?;
-            if side(back)? != f || f.0.kind == DIELECTRIC {
+            if side(back)? != f || f.0.kind == DIELECTRIC || f.0.kind == ROUGH_DIELECTRIC {
                 return Err(unsupported(format!("material '{name}' is two-sided with different BSDFs on its sides")));
             }
             let f = material(front, name, tables)?;
@@ -353,9 +370,6 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         other => return Err(unsupported(format!("the film's filter is {other:?}"))),
     };
     let cam = &scene.camera;
-    if cam.aperture_radius > 0.0 {
-        return Err(unsupported("the camera is a thin lens".into()));
-    }
     // Point, spot and directional lights; area lights come with their meshes' triangles below.
     let mut emitters = Vec::new();
     let mut power = Vec::new();
@@ -548,6 +562,8 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         forward: v(cam.forward),
         tan_half: [cam.tan_half.x, cam.tan_half.y],
         near_clip: cam.near_clip,
+        aperture_radius: cam.aperture_radius.max(0.0),
+        focus_distance: cam.focus_distance,
         // As the CPU's ray_epsilon.
         eps_scale: 1.0 / 65536.0,
         width: s.width as u32,

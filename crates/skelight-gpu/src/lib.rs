@@ -7,7 +7,7 @@
 //! atomic adds, MIS with one float per path), over the feature subset [`flatten::FEATURES`];
 //! a scene outside it is refused. Random numbers are drawn per (seed, pixel, sample index),
 //! so GPU renders agree with the CPU's in expectation and merge with them. Not yet: the
-//! other BSDFs, lights and the thin lens (issue 35).
+//! other BSDFs and lights (issue 35).
 
 pub mod flatten;
 mod tables;

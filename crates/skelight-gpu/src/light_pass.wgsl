@@ -1,7 +1,8 @@
 // The light pass of instant BPT (seed 002, §3): one light path per (pixel, sample) of the
 // dispatch, its own random stream; every vertex x_j not specular is joined to the pinhole
 // (explicit light paths, the CPU's t = 1) and splatted onto the film with atomic adds. A
-// pinhole cannot be hit, so implicit light paths do not occur.
+// pinhole cannot be hit; a thin lens's aperture could, but that strategy (the CPU's t = 0)
+// is left out here, so implicit light paths do not occur.
 //
 // MIS (see camera_pass.wgsl for the notation): the light walk keeps one float, `prod` =
 // Π (C/L)² over x_1 … x_{j−2}, and the origin's term `origin` = [x_1 not specular] + (C_0/L_0)²
@@ -9,8 +10,8 @@
 // the product over x_1 … x_{j}); x_{j−1}'s camera-side density needs x_j's BSDF sampled from
 // the lens's side, known once the walk has left x_j or the connection is made.
 
-// The pinhole as seen from scene point `p` (geometric normal `ng`): the pixel the point
-// projects to, and what a connection needs.
+// The camera as seen from scene point `p` (geometric normal `ng`), through a lens point
+// sampled on the aperture: the pixel the point projects to, and what a connection needs.
 struct LensView {
     visible: bool,
     pixel: u32,
@@ -23,14 +24,28 @@ struct LensView {
 
 fn lens_view(p: vec3<f32>, ng: vec3<f32>) -> LensView {
     var v = LensView(false, 0u, vec2<f32>(0.0), vec3<f32>(0.0), 0.0, 0.0, 0.0);
-    let to_lens = P.cam_pos.xyz - p;
-    let local = mat3x3<f32>(P.inv_x.xyz, P.inv_y.xyz, P.inv_z.xyz) * (-to_lens);
+    // A thin lens's point uniform on the aperture (its density per unit area cancels against
+    // W_e's 1/area); the centre of a pinhole.
+    let lens = lens_sample();
+    let lens_world = P.cam_pos.xyz + mat3x3<f32>(P.cam_x.xyz, P.cam_y.xyz, P.cam_z.xyz) * lens;
+    let to_lens = lens_world - p;
+    // p in camera space (the lens lies in its plane z = 0).
+    let q = mat3x3<f32>(P.inv_x.xyz, P.inv_y.xyz, P.inv_z.xyz) * (p - P.cam_pos.xyz);
     // Points nearer than the near plane are clipped away.
-    if (!(local.z >= P.near_clip)) {
+    if (!(q.z >= P.near_clip)) {
         return v;
     }
-    let sx = (1.0 - local.x / (local.z * P.tan_half.x)) * 0.5;
-    let sy = (1.0 - local.y / (local.z * P.tan_half.y)) * 0.5;
+    // The film position: where the ray from the lens point through p crosses the plane of
+    // focus, seen from the lens centre (the CPU's raster_of); q's own direction for a pinhole.
+    let rel = q - lens;
+    var x = rel.x / rel.z;
+    var y = rel.y / rel.z;
+    if (P.aperture_radius > 0.0) {
+        x = x + lens.x / P.focus_distance;
+        y = y + lens.y / P.focus_distance;
+    }
+    let sx = (1.0 - x / P.tan_half.x) * 0.5;
+    let sy = (1.0 - y / P.tan_half.y) * 0.5;
     if (!(sx >= 0.0 && sx < 1.0 && sy >= 0.0 && sy < 1.0)) {
         return v;
     }
@@ -43,7 +58,7 @@ fn lens_view(p: vec3<f32>, ng: vec3<f32>) -> LensView {
         return v;
     }
     // Only the segment beyond the near plane must be free (as the CPU's near_point).
-    let near = P.cam_pos.xyz - to_lens * (P.near_clip / local.z);
+    let near = lens_world - to_lens * (P.near_clip / q.z);
     let po = spawn(p, ng, v.w);
     let free_dist = distance(near, po);
     if (free_dist > 0.0 && intersect(po, (near - po) / free_dist, free_dist * (1.0 - 1e-4), true).tri != NONE) {
@@ -51,6 +66,7 @@ fn lens_view(p: vec3<f32>, ng: vec3<f32>) -> LensView {
     }
     let pdf_dir = 1.0 / (film_area() * cos_lens * cos_lens * cos_lens);
     let we = pdf_dir / cos_lens;                  // 1 / (A cos⁴)
+    // A thin lens's W_e carries 1/(aperture area), which its lens point's density cancels.
     v.importance = we * f32(P.width * P.height) * cos_lens / v.dist2;
     v.c = pdf_dir * abs(dot(ng, v.w)) / v.dist2;
     v.pixel = py * P.width + px;
@@ -129,7 +145,7 @@ fn light_path(px: u32, py: u32, sample: u32) {
         if (P.max_depth < 0 || j + 1 <= P.max_depth) {
             let view = lens_view(s.p, s.ng);
             if (view.visible) {
-                let fcos = bsdf_eval(s, wi, view.w) * adjoint_correction(s, wi, view.w);
+                let fcos = bsdf_eval(s, wi, view.w, false) * adjoint_correction(s, wi, view.w);
                 if (max(fcos.x, max(fcos.y, fcos.z)) > 0.0) {
                     // x_{j−1}'s camera-side density: x_j's BSDF sampled from the lens's side.
                     let c_prev = bsdf_pdf(s, view.w, wi) * to_prev;
