@@ -25,7 +25,7 @@ pub(crate) fn render(args: &RenderArgs) -> Result<()> {
         bail!("--spp must be at least 1");
     }
     let mut gpu = skelight_gpu::GpuRenderer::new(&scene, estimator)?;
-    eprintln!("GPU {}: {}", estimator.name(), gpu.adapter);
+    eprintln!("GPU {}: {} (splats by {:?})", estimator.name(), gpu.adapter, gpu.splat_mode);
     let start = std::time::Instant::now();
     let mut film = skelight::film::Film::new(scene.settings.width, scene.settings.height, scene.settings.filter);
     gpu.render_into(&mut film, args.seed, 0, spp, |done| {
@@ -72,7 +72,7 @@ pub(crate) fn bench(path: &std::path::Path, scene: &skelight::scene::Scene, name
     let rays = (gpu.rays_traced() - rays_before) as f64;
     let samples = spp as f64 * (w * h) as f64;
     let memory = gpu.memory();
-    println!("GPU: {}", gpu.adapter);
+    println!("GPU: {} (splats by {:?})", gpu.adapter, gpu.splat_mode);
     println!(
         "{} {name} (gpu): {w}×{h} {spp} spp, max depth {}, {secs:.3} s, {:.3} Msamples/s, {:.1} Mrays/s ({:.1} rays per sample), mean {:?}",
         path.display(),

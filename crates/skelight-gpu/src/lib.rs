@@ -116,6 +116,8 @@ pub struct GpuRenderer {
     memory: Memory,
     /// The adapter, in words (name, driver, type).
     pub adapter: String,
+    /// How splats are added: by the adapter's float atomics or by compare and swap.
+    pub splat_mode: Splats,
 }
 
 fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
@@ -128,15 +130,34 @@ fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     })
 }
 
+/// How the light pass's splats (and the tent filter's camera samples) are added to the film.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Splats {
+    /// Float atomics where the adapter has them (VK_EXT_shader_atomic_float), else compare
+    /// and swap.
+    Auto,
+    /// A float's bits swapped in by compare and swap: what adapters without float atomics
+    /// get, and chosen on purpose to test that path on one that has them.
+    CompareAndSwap,
+    /// The adapter's float atomics (reported by [`GpuRenderer::splat_mode`]; not a request).
+    FloatAtomics,
+}
+
 impl GpuRenderer {
     /// Flattens `scene` (refusing what the GPU cannot render) and opens the first Vulkan
     /// adapter: a real GPU when there is one, else lavapipe.
     pub fn new(scene: &Scene, estimator: Estimator) -> Result<GpuRenderer, GpuError> {
-        let flat = flatten::flatten(scene)?;
-        pollster::block_on(GpuRenderer::open(flat, estimator))
+        GpuRenderer::with_splats(scene, estimator, Splats::Auto)
     }
 
-    async fn open(mut flat: Flat, estimator: Estimator) -> Result<GpuRenderer, GpuError> {
+    /// [`GpuRenderer::new`] with the way splats are added chosen ([`Splats::Auto`] or
+    /// [`Splats::CompareAndSwap`]).
+    pub fn with_splats(scene: &Scene, estimator: Estimator, splats: Splats) -> Result<GpuRenderer, GpuError> {
+        let flat = flatten::flatten(scene)?;
+        pollster::block_on(GpuRenderer::open(flat, estimator, splats))
+    }
+
+    async fn open(mut flat: Flat, estimator: Estimator, splats: Splats) -> Result<GpuRenderer, GpuError> {
         flat.params.bidirectional = match estimator {
             Estimator::Pt => 0,
             Estimator::Ibpt => 1,
@@ -155,7 +176,8 @@ impl GpuRenderer {
         let info = adapter.get_info();
         let name = format!("{} ({}, {:?})", info.name, info.driver, info.device_type);
         let limits = adapter.limits();
-        let float_atomics = adapter.features().contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
+        let float_atomics =
+            splats != Splats::CompareAndSwap && adapter.features().contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
         if limits.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
             return Err(GpuError::Device(format!(
                 "{name} offers {} storage buffers per shader stage; the kernels need {STORAGE_BUFFERS}",
@@ -337,6 +359,7 @@ impl GpuRenderer {
                 SAMPLES_PER_DISPATCH
             },
             adapter: name,
+            splat_mode: if float_atomics { Splats::FloatAtomics } else { Splats::CompareAndSwap },
         })
     }
 

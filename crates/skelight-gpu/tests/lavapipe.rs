@@ -12,12 +12,16 @@ use skelight::film::Film;
 use skelight::imageio::Image;
 use skelight::scene::load::load;
 use skelight::scene::Scene;
-use skelight_gpu::{Estimator, GpuError, GpuRenderer};
+use skelight_gpu::{Estimator, GpuError, GpuRenderer, Splats};
 
 /// Opens the GPU for `scene`, or `None` (with a note) when the machine has no adapter and
 /// none is required.
 fn open(scene: &Scene, estimator: Estimator) -> Result<Option<GpuRenderer>, GpuError> {
-    match GpuRenderer::new(scene, estimator) {
+    open_with(scene, estimator, Splats::Auto)
+}
+
+fn open_with(scene: &Scene, estimator: Estimator, splats: Splats) -> Result<Option<GpuRenderer>, GpuError> {
+    match GpuRenderer::with_splats(scene, estimator, splats) {
         Err(GpuError::NoAdapter(why)) if std::env::var("SKELIGHT_REQUIRE_GPU").as_deref() != Ok("1") => {
             println!("no Vulkan adapter ({why}): GPU tests skipped");
             Ok(None)
@@ -137,8 +141,22 @@ fn scenes_outside_the_subset_are_refused_by_name() {
 /// 8×8 blocks by T with each side's variance from its renders' spread, as the CPU's
 /// estimators are compared.
 fn gpu_and_cpu_agree(estimator: Estimator, scene: &Scene, batches: u64, gpu_spp: u32, cpu_spp: u32) {
+    gpu_and_cpu_agree_with(estimator, scene, batches, gpu_spp, cpu_spp, Splats::Auto);
+}
+
+fn gpu_and_cpu_agree_with(
+    estimator: Estimator,
+    scene: &Scene,
+    batches: u64,
+    gpu_spp: u32,
+    cpu_spp: u32,
+    splats: Splats,
+) {
     let name = estimator.name();
-    let Some(mut gpu) = open(scene, estimator).expect("inside the GPU's subset") else { return };
+    let Some(mut gpu) = open_with(scene, estimator, splats).expect("inside the GPU's subset") else { return };
+    if splats == Splats::CompareAndSwap {
+        assert_eq!(gpu.splat_mode, Splats::CompareAndSwap);
+    }
     let g: Vec<Image> = (0..batches).map(|i| render(&mut gpu, scene, gpu_spp, 21 + i).image()).collect();
     let mut cpu = skelight::integrator::registry::create(name, &[]).unwrap();
     let c: Vec<Image> =
@@ -169,6 +187,17 @@ fn gpu_and_cpu_ibpt_agree(scene: &Scene, gpu_spp: u32, cpu_spp: u32) {
 fn gpu_ibpt_matches_cpu_ibpt_on_the_cornell_box() {
     let scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 64, 64);
     gpu_and_cpu_ibpt_agree(&scene, 64, 64);
+}
+
+/// Splats by compare and swap (what adapters without float atomics get), chosen on one that
+/// has them: GPU ibpt against CPU ibpt on the Cornell box with the box filter (the light
+/// pass's splats) and the tent filter (the camera samples' weighted sums as well).
+#[test]
+fn gpu_ibpt_with_compare_and_swap_splats_matches_the_cpu() {
+    let mut scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 32, 32);
+    gpu_and_cpu_agree_with(Estimator::Ibpt, &scene, 4, 32, 64, Splats::CompareAndSwap);
+    scene.settings.filter = skelight::film::Filter::Tent { radius: 1.5 };
+    gpu_and_cpu_agree_with(Estimator::Ibpt, &scene, 4, 32, 64, Splats::CompareAndSwap);
 }
 
 /// The caustic scene (seed 002's claim): a small light focused by a glass ball onto the floor,

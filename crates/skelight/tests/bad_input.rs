@@ -397,3 +397,34 @@ fn ids_nested_in_unnamed_top_level_objects_are_found() {
     assert!(matches!(m.bsdf, skelight::material::Bsdf::RoughPlastic(_)), "{:?}", m.bsdf);
     assert!(s.warnings.iter().any(|w| w.contains("u.xml:") && w.contains("no id")), "{:?}", s.warnings);
 }
+
+/// A thin lens's aperture must be finite and at least 0, its focus distance finite and
+/// positive (1e39 reads as an infinite f32, which would make every camera ray NaN): in both
+/// scene formats (the XML parser refuses non-finite numbers itself).
+#[test]
+fn thin_lens_parameters_out_of_range_are_named() {
+    let d = Dir::new("lens");
+    let lens = |aperture: &str, focus: &str| {
+        let sensor = format!(
+            r#"<sensor type="thinlens"><float name="fov" value="40"/><float name="aperture_radius" value="{aperture}"/><float name="focus_distance" value="{focus}"/>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>"#
+        );
+        format!(r#"<scene version="3.0.0">{sensor}</scene>"#)
+    };
+    let p = d.file("inf.xml", lens("0.1", "1e39").as_bytes());
+    assert_mentions(&load_err(&p), &["inf.xml", "focus_distance"]);
+    let p = d.file("neg.xml", lens("-0.1", "2").as_bytes());
+    assert_mentions(&load_err(&p), &["neg.xml", "aperture_radius"]);
+    assert!(load(&d.file("ok.xml", lens("0.1", "2").as_bytes()), &[]).is_ok());
+    let toml = |aperture: &str, focus: &str| {
+        format!(
+            "[film]\nwidth = 8\nheight = 8\n[camera]\norigin = [0.0, 0.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\n\
+             aperture_radius = {aperture}\nfocus_distance = {focus}\n"
+        )
+    };
+    let p = d.file("zero.toml", toml("0.1", "0.0").as_bytes());
+    assert_mentions(&load_err(&p), &["zero.toml", "focus_distance"]);
+    let p = d.file("neg.toml", toml("-0.5", "2.0").as_bytes());
+    assert_mentions(&load_err(&p), &["neg.toml", "aperture_radius"]);
+    assert!(load(&d.file("ok.toml", toml("0.1", "2.0").as_bytes()), &[]).is_ok());
+}

@@ -262,6 +262,13 @@ pub fn load_native(path: &Path) -> Result<SceneDescription, LoadError> {
         }
         let lens =
             Lens { aperture_radius: c.aperture_radius.unwrap_or(0.0), focus_distance: c.focus_distance.unwrap_or(1.0) };
+        let Lens { aperture_radius: aperture, focus_distance: focus } = lens;
+        if !(aperture >= 0.0 && aperture.is_finite()) {
+            return Err(ctx.err(format!("camera.aperture_radius {aperture} must be finite and at least 0")));
+        }
+        if aperture > 0.0 && !(focus > 0.0 && focus.is_finite()) {
+            return Err(ctx.err(format!("camera.focus_distance {focus} must be finite and positive for a thin lens")));
+        }
         let near = c.near_clip.unwrap_or(Camera::DEFAULT_NEAR_CLIP);
         if !(near >= 0.0 && near.is_finite()) {
             return Err(ctx.err(format!("camera.near_clip {near} must be finite and at least 0")));

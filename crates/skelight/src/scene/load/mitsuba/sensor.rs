@@ -79,6 +79,10 @@ impl Loader {
         self.fov = (fov, axis);
         let aperture = if ty == "thinlens" { self.float(n, "aperture_radius", 0.03)? } else { 0.0 };
         let focus = self.float(n, "focus_distance", 0.0)?;
+        // (Floats are finite once parsed.)
+        if aperture < 0.0 {
+            return Err(self.err(n, format!("thinlens aperture_radius {aperture} must be at least 0")));
+        }
         if aperture > 0.0 && !(focus > 0.0) {
             return Err(self.err(n, "thinlens needs a positive focus_distance"));
         }
