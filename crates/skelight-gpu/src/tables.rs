@@ -6,9 +6,10 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
+use skelight::color::Rgb;
 use skelight::light::EnvMap;
 use skelight::math::vec3;
-use skelight::texture::{Bitmap, TexFilter, Texture};
+use skelight::texture::{Bitmap, TexFilter, Texture, UvTransform};
 
 /// Texture kinds (texture.wgsl).
 pub const TEX_BILINEAR: u32 = 0;
@@ -73,15 +74,10 @@ impl Tables {
     /// A constant as a texture descriptor (a checkerboard of one colour), where a kernel
     /// reads a texture unconditionally (opacity masks).
     pub fn constant_texture(&mut self, value: Option<[f32; 3]>) -> u32 {
-        let c = value.unwrap_or([1.0; 3]);
-        let mut words = [0.0f32; DESCRIPTOR_WORDS];
-        words[0] = f32::from_bits(TEX_CHECKER);
-        words[4] = 1.0;
-        words[8] = 1.0;
-        words[10] = 1.0;
-        words[11..14].copy_from_slice(&c);
-        words[14..17].copy_from_slice(&c);
-        self.push(&words)
+        let [r, g, b] = value.unwrap_or([1.0; 3]);
+        let c = Rgb { r, g, b };
+        let one_colour = Texture::Checkerboard { color0: c, color1: c, to_uv: UvTransform::IDENTITY };
+        self.texture(&one_colour).expect("a checkerboard has a descriptor")
     }
 
     fn texels(&mut self, bitmap: &Arc<Bitmap>) -> u32 {
@@ -102,33 +98,18 @@ pub const ENVIRONMENT_WORDS: usize = 25;
 
 impl Tables {
     /// An environment map's descriptor, texels and sampling tables (its offset): the CPU's
-    /// EnvMap::new, cells between texel rows weighted by their corners' largest value × sin θ,
-    /// a marginal over rows and a conditional per row, as cumulative tables (n + 1 words each,
-    /// from 0 to 1; an all-zero row uniform, as the CPU's Distribution1D).
+    /// own distribution (EnvMap::new: cells between texel rows), its marginal over rows and a
+    /// conditional per row as cumulative tables (n + 1 words each, from 0 to 1).
     pub fn environment_map(&mut self, env: &EnvMap) -> u32 {
         let image = env.image();
-        let (w, h) = (image.width, image.height);
-        let rows = h.max(2) - 1;
-        let value = |x: usize, y: usize| image.get(x % w, y.min(h - 1)).max_component().max(0.0);
-        let mut weights = vec![0.0f64; w * rows];
-        for j in 0..rows {
-            let sin = (std::f32::consts::PI * (j as f32 + 0.5) / rows as f32).sin();
-            for i in 0..w {
-                let m = [value(i, j), value(i + 1, j), value(i, j + 1), value(i + 1, j + 1)]
-                    .into_iter()
-                    .fold(0.0, f32::max);
-                weights[j * w + i] = (m * sin) as f64;
-            }
-        }
-        let row_sums: Vec<f64> =
-            weights.chunks(w).map(|r| r.iter().filter(|v| v.is_finite() && **v > 0.0).sum()).collect();
+        let distribution = env.distribution();
+        let rows = distribution.conditionals().len();
         let texels: Vec<f32> = image.pixels.iter().flat_map(|p| [p.r, p.g, p.b]).collect();
         let texels = self.push(&texels);
-        let marginal = self.push(&cumulative(&row_sums));
+        let marginal = self.push(distribution.marginal().cdf());
         let conditional = self.data.len() as u32;
-        for row in weights.chunks(w) {
-            let c = cumulative(row);
-            self.push(&c);
+        for row in distribution.conditionals() {
+            self.push(row.cdf());
         }
         let word = |u: u32| f32::from_bits(u);
         let columns = |f: &dyn Fn(skelight::math::Vec3) -> skelight::math::Vec3| {
@@ -136,29 +117,14 @@ impl Tables {
         };
         let to_world = env.to_world();
         let to_local = to_world.inverse();
-        let mut words = vec![word(w as u32), word(h as u32), word(rows as u32), word(texels), env.scale()];
+        let mut words =
+            vec![word(image.width as u32), word(image.height as u32), word(rows as u32), word(texels), env.scale()];
         words.extend(columns(&|v| to_world.vector(v)));
         words.extend(columns(&|v| to_local.vector(v)));
         words.extend([word(marginal), word(conditional)]);
         debug_assert_eq!(words.len(), ENVIRONMENT_WORDS);
         self.push(&words)
     }
-}
-
-/// The cumulative table of `weights` (negative or non-finite as zero), n + 1 values from 0
-/// to 1; uniform when all are zero.
-fn cumulative(weights: &[f64]) -> Vec<f32> {
-    let clean: Vec<f64> = weights.iter().map(|&v| if v.is_finite() && v > 0.0 { v } else { 0.0 }).collect();
-    let total: f64 = clean.iter().sum();
-    let n = clean.len();
-    let mut acc = 0.0;
-    let mut out = vec![0.0f32];
-    for (i, v) in clean.iter().enumerate() {
-        acc += v;
-        out.push(if total > 0.0 { (acc / total) as f32 } else { (i + 1) as f32 / n as f32 });
-    }
-    out[n] = 1.0;
-    out
 }
 
 /// A constant texture's value (scales applied), or `None` for any other.

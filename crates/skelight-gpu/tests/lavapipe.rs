@@ -179,6 +179,13 @@ fn gpu_and_cpu_agree_with(
     assert!(t < T_LIMIT, "GPU {name} vs CPU {name}: block T = {t:.2}");
 }
 
+/// GPU pt and ibpt against the CPU's on a small conformance scene: 4 renders a side of 32 GPU
+/// and 64 CPU spp.
+fn gpu_pt_and_ibpt_agree_with_the_cpu(scene: &Scene) {
+    gpu_and_cpu_agree(Estimator::Pt, scene, 4, 32, 64);
+    gpu_and_cpu_agree(Estimator::Ibpt, scene, 4, 32, 64);
+}
+
 fn gpu_and_cpu_ibpt_agree(scene: &Scene, gpu_spp: u32, cpu_spp: u32) {
     gpu_and_cpu_agree(Estimator::Ibpt, scene, 2, gpu_spp, cpu_spp);
 }
@@ -234,8 +241,7 @@ fn gpu_ibpt_matches_cpu_ibpt_on_veach_door() {
 #[test]
 fn gpu_pt_and_ibpt_match_the_cpu_under_a_constant_environment() {
     let scene = common::load_small(&shared_dir().join("conformance/scenes/c05_constant_env.xml"), 48, 48);
-    gpu_and_cpu_agree(Estimator::Pt, &scene, 4, 32, 64);
-    gpu_and_cpu_agree(Estimator::Ibpt, &scene, 4, 32, 64);
+    gpu_pt_and_ibpt_agree_with_the_cpu(&scene);
 }
 
 /// An opacity mask (c13, whose Mitsuba reference counts the mask as a bounce): GPU pt and ibpt
@@ -257,8 +263,7 @@ fn gpu_pt_and_ibpt_match_the_cpu_with_an_opacity_mask() {
     let leaf = common::load_small(&shared_dir().join("conformance/scenes/c13_mask_twosided.xml"), 48, 48);
     let variant = common::edited_conformance_scene("c13_mask_twosided", upside_down, 48, 48);
     for scene in [leaf, variant] {
-        gpu_and_cpu_agree(Estimator::Pt, &scene, 4, 32, 64);
-        gpu_and_cpu_agree(Estimator::Ibpt, &scene, 4, 32, 64);
+        gpu_pt_and_ibpt_agree_with_the_cpu(&scene);
     }
 }
 
@@ -268,8 +273,7 @@ fn gpu_pt_and_ibpt_match_the_cpu_with_an_opacity_mask() {
 #[test]
 fn gpu_pt_and_ibpt_match_the_cpu_through_a_thin_lens() {
     let scene = common::load_small(&shared_dir().join("conformance/scenes/c14_thinlens.xml"), 48, 48);
-    gpu_and_cpu_agree(Estimator::Pt, &scene, 4, 32, 64);
-    gpu_and_cpu_agree(Estimator::Ibpt, &scene, 4, 32, 64);
+    gpu_pt_and_ibpt_agree_with_the_cpu(&scene);
 }
 
 /// A rough dielectric (c10's GGX glass sphere, and the same with Beckmann microfacets): GPU pt
@@ -285,8 +289,7 @@ fn gpu_pt_and_ibpt_match_the_cpu_through_rough_glass() {
         48,
     );
     for scene in [ggx, beckmann] {
-        gpu_and_cpu_agree(Estimator::Pt, &scene, 4, 32, 64);
-        gpu_and_cpu_agree(Estimator::Ibpt, &scene, 4, 32, 64);
+        gpu_pt_and_ibpt_agree_with_the_cpu(&scene);
     }
 }
 

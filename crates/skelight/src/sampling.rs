@@ -247,6 +247,10 @@ impl Distribution1D {
     pub fn is_empty(&self) -> bool {
         self.func.is_empty()
     }
+    /// The cumulative table: n + 1 values from 0 to 1 (for kernels that search it themselves).
+    pub fn cdf(&self) -> &[f32] {
+        &self.cdf
+    }
     /// Sum of the weights.
     pub fn integral(&self) -> f32 {
         self.integral
@@ -296,6 +300,13 @@ impl Distribution2D {
             .map(|y| weights[y * width..(y + 1) * width].iter().filter(|w| w.is_finite() && **w > 0.0).sum())
             .collect();
         Distribution2D { conditional, marginal: Distribution1D::new(&row_sums), width, height }
+    }
+    /// The distribution over rows, and each row's over its columns.
+    pub fn marginal(&self) -> &Distribution1D {
+        &self.marginal
+    }
+    pub fn conditionals(&self) -> &[Distribution1D] {
+        &self.conditional
     }
     /// Returns the point in [0, 1]² and its density with respect to area on [0, 1]².
     pub fn sample(&self, u: Vec2) -> (Vec2, f32) {

@@ -88,6 +88,10 @@ impl EnvMap {
     pub fn to_world(&self) -> &Transform {
         &self.to_world
     }
+    /// Its sampling distribution over the cells between texel rows (rows × width).
+    pub fn distribution(&self) -> &Distribution2D {
+        &self.distribution
+    }
 
     fn texel(&self, x: usize, y: usize) -> Rgb {
         self.image.get(x % self.image.width, y.min(self.image.height - 1))
