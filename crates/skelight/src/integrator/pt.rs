@@ -34,8 +34,9 @@ pub trait GuidedVertex {
     fn key(&self) -> u32 {
         0
     }
-    /// The probability c of drawing from the guide rather than from the BSDF, in (0, 1): at
-    /// 1, delta lobes and directions the guide cannot draw would never be taken (a bias).
+    /// The probability c of drawing from the guide rather than from the BSDF, in [0, 1): at
+    /// 1, delta lobes and directions the guide cannot draw would never be taken (a bias);
+    /// at 0 the vertex is path tracing's, but its steps are recorded (for guides that learn).
     fn selection(&self) -> f32;
     /// Solid-angle density of world direction `wo`.
     fn pdf(&self, wo: Vec3) -> f32;
@@ -76,7 +77,11 @@ fn mixture_pdf<V: GuidedVertex>(guide: Option<&V>, bsdf_pdf: f32, wo: Vec3) -> f
     match guide {
         Some(g) => {
             let c = g.selection();
-            (1.0 - c) * bsdf_pdf + c * g.pdf(wo)
+            if c > 0.0 {
+                (1.0 - c) * bsdf_pdf + c * g.pdf(wo)
+            } else {
+                bsdf_pdf
+            }
         }
         None => bsdf_pdf,
     }

@@ -9,9 +9,9 @@
 //! wherever the BSDF can sample every direction it reflects into. Next-event estimation
 //! and MIS on emitter hits are `pt`'s, against that mixture density.
 //!
-//! Where skeleton sampling cannot help it is not used: at delta and near-specular BSDFs,
-//! at points no node reaches, and everywhere in a scene with no lit node (then the render
-//! is `pt`'s, and the preparation says so).
+//! Where skeleton sampling cannot help it is not used: at BSDFs with a delta lobe (mirrors,
+//! glass, coatings) and near-specular ones, at points no node reaches, and everywhere in a
+//! scene with no lit node (then the render is `pt`'s, and the preparation says so).
 
 use std::sync::Arc;
 
@@ -165,6 +165,10 @@ struct SkeletonGuidance<'a> {
     directions: &'a Directions,
     /// Strength and c_skel per node.
     node_params: &'a [(f32, f32)],
+    /// Whether paths are recorded for learning: then a node whose c_skel is 0 still offers
+    /// its (never sampled) mixture, so that its steps keep being observed and it can turn
+    /// guidance back on when later passes show it helps.
+    learning: bool,
 }
 
 /// Eq. 167's mixture at one vertex.
@@ -205,13 +209,15 @@ impl<'g> DirectionGuide for SkeletonGuidance<'g> {
     #[inline]
     fn at<'a>(&'a self, si: &SurfaceInteraction, bsdf: &Bsdf) -> Option<SkeletonVertex<'a>> {
         let side = bsdf.facing(si.frame.to_local(si.wi));
-        if side.near_specular() || !side.has_smooth() {
+        // A delta lobe beside smooth ones (a coating) is drawn with probability 1 − c, so
+        // guiding there pays 1/(1 − c) on every specular path (measured: worse on veach-door).
+        if side.near_specular() || !side.has_smooth() || side.has_delta_lobe() {
             return None;
         }
         let node = self.guide.node_at(si.p, si.ng, si.wi)?;
         let targets = self.directions.at(node);
         let (strength, c_skel) = self.node_params[node as usize];
-        if targets.is_empty() || c_skel <= 0.0 {
+        if targets.is_empty() || (c_skel <= 0.0 && !self.learning) {
             return None;
         }
         Some(SkeletonVertex { node, targets, strength, c_skel, x: si.p, normal: si.ng })
@@ -288,7 +294,12 @@ impl Integrator for SkeletonPathTracer {
         let max_depth = scene.settings.max_depth;
         let l = match &self.prepared {
             Some(p) => {
-                let g = SkeletonGuidance { guide: &p.guide, directions: &p.directions, node_params: &p.node_params };
+                let g = SkeletonGuidance {
+                    guide: &p.guide,
+                    directions: &p.directions,
+                    node_params: &p.node_params,
+                    learning: self.adaptive,
+                };
                 if self.adaptive {
                     let learning = cx.scratch.get::<Learning>();
                     learning.steps.clear();
@@ -343,5 +354,82 @@ fn observe(directions: &Directions, total: crate::color::Rgb, learning: &mut Lea
                 sums[i * SELECTIONS.len() + j] += if p > 0.0 { h * h / (p * step.pdf as f64) } else { f64::INFINITY };
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::film::FilmTile;
+    use crate::integrator::Iteration;
+
+    /// A node whose learned c_skel is 0 keeps being observed (its steps recorded), so that a
+    /// later pass can turn guidance back on there: a node is never frozen by one choice.
+    #[test]
+    fn nodes_without_guidance_are_still_observed() {
+        let mut scene = crate::scene::builtin::two_rooms();
+        scene.set_resolution(16, 16);
+        let params = Params::new("skelpt", PARAMS, &[]).unwrap();
+        let mut skelpt = SkeletonPathTracer::from_params(&params);
+        skelpt.prepare(&scene).expect("prepares");
+        for p in &mut skelpt.prepared.as_mut().expect("guided").node_params {
+            p.1 = 0.0;
+        }
+        let mut scratch = skelpt.new_scratch();
+        let mut tile = FilmTile::new(0, 0, 16, 16, scene.settings.filter);
+        let iteration = Iteration::default();
+        for y in 0..16 {
+            for x in 0..16 {
+                for s in 0..16 {
+                    let mut rng = Rng::new(1, (y * 16 + x) as u64, s);
+                    let mut cx = SampleContext { tile: &mut tile, iteration: &iteration, scratch: &mut scratch };
+                    skelpt.sample(&scene, x, y, &mut rng, &mut cx);
+                }
+            }
+        }
+        skelpt.finish_pass(&scene, std::slice::from_mut(&mut scratch));
+        let p = skelpt.prepared.as_ref().expect("guided");
+        let observed: u64 = p.moments.counts.iter().sum();
+        let on = p.node_params.iter().filter(|&&(_, c)| c > 0.0).count();
+        println!("{observed} steps observed; guidance back on at {on} of {} nodes", p.node_params.len());
+        assert!(observed >= 1000, "only {observed} steps observed at nodes without guidance");
+        assert!(on > 0, "no node turned guidance back on");
+    }
+
+    /// Smooth plastic and coatings (a delta lobe beside a smooth one) are left to BSDF
+    /// sampling: guiding would draw their specular lobe with probability 1 − c only. A
+    /// diffuse surface at the same point is guided.
+    #[test]
+    fn bsdfs_with_a_delta_lobe_are_not_guided() {
+        use crate::color::Rgb;
+        use crate::material::{Coating, Diffuse, Plastic};
+        use crate::texture::Texture;
+        let mut scene = crate::scene::builtin::two_rooms();
+        scene.set_resolution(16, 16);
+        let params = Params::new("skelpt", PARAMS, &[("adaptive".into(), "false".into())]).unwrap();
+        let mut skelpt = SkeletonPathTracer::from_params(&params);
+        skelpt.prepare(&scene).expect("prepares");
+        let p = skelpt.prepared.as_ref().expect("guided");
+        let g = SkeletonGuidance {
+            guide: &p.guide,
+            directions: &p.directions,
+            node_params: &p.node_params,
+            learning: false,
+        };
+        let diffuse = || Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(0.5) });
+        let plastic = Bsdf::Plastic(Plastic::new(Texture::constant(0.5), Texture::constant(1.0), 1.5, false));
+        let coating = Bsdf::Coating(Coating::new(1.5, Rgb::WHITE, Rgb::BLACK, diffuse()));
+        let mut guided = 0;
+        for (px, py) in [(8, 8), (4, 12), (12, 4), (8, 14)] {
+            let ray = scene.camera.generate_ray(vec2(px as f32 + 0.5, py as f32 + 0.5), vec2(0.5, 0.5));
+            let Some(si) = scene.intersect(&ray) else { continue };
+            if g.at(&si, &diffuse()).is_none() {
+                continue;
+            }
+            guided += 1;
+            assert!(g.at(&si, &plastic).is_none(), "smooth plastic guided at pixel ({px}, {py})");
+            assert!(g.at(&si, &coating).is_none(), "a coating guided at pixel ({px}, {py})");
+        }
+        assert!(guided >= 2, "too few guided diffuse vertices: {guided}");
     }
 }
