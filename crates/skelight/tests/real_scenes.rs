@@ -5,6 +5,7 @@ mod common;
 use std::path::Path;
 
 use common::*;
+use skelight::eval::block_means;
 use skelight::imageio::Image;
 use skelight::integrator::by_name;
 use skelight::math::Vec3;
@@ -194,28 +195,17 @@ fn corridor_far_from_light_matches_the_authors_reference() {
         .and_then(|s| s.parse().ok())
         .expect("reference.bnz.xml: IterationCount");
     let (w, h, side) = (16, 16, 4);
-    let f = reference.width / w;
-    assert_eq!((reference.width, reference.height), (w * f, h * f));
-    let region = |x: usize, y: usize| (y * side / h) * side + x * side / w;
-    let per_region = (w * h / (side * side)) as f64;
-    let mut expected = vec![0.0f64; side * side];
-    for y in 0..reference.height {
-        for x in 0..reference.width {
-            let p = reference.pixels[(reference.height - 1 - y) * reference.width + x];
-            expected[region(x / f, y / f)] += p.luminance() as f64 / iterations / (f * f) as f64 / per_region;
-        }
-    }
+    assert_eq!((reference.width % side, reference.height % side), (0, 0));
+    // Region means by the project's block means (green: both images are grey); the
+    // reference's block rows are read bottom-up.
+    let green = |blocks: Vec<[f64; 3]>| blocks.into_iter().map(|b| b[1]).collect::<Vec<f64>>();
+    let by_rows = green(block_means(&reference, reference.width / side));
+    let expected: Vec<f64> =
+        (0..side * side).map(|r| by_rows[(side - 1 - r / side) * side + r % side] / iterations).collect();
     let scene = load_small(&repo_scene("corridor-far-from-light.toml"), w, h);
     let mut bpt = by_name("bpt").unwrap();
     let runs: Vec<Vec<f64>> = (0..16)
-        .map(|seed| {
-            let img = render_spp(&scene, bpt.as_mut(), 256, 40 + seed).image();
-            let mut sums = vec![0.0f64; side * side];
-            for (i, p) in img.pixels.iter().enumerate() {
-                sums[region(i % w, i / w)] += p.luminance() as f64 / per_region;
-            }
-            sums
-        })
+        .map(|seed| green(block_means(&render_spp(&scene, bpt.as_mut(), 256, 40 + seed).image(), w / side)))
         .collect();
     let n = runs.len() as f64;
     let mut off = Vec::new();
