@@ -72,7 +72,7 @@ pub(crate) fn bench(path: &std::path::Path, scene: &skelight::scene::Scene, name
     let rays = (gpu.rays_traced() - rays_before) as f64;
     let samples = spp as f64 * (w * h) as f64;
     let memory = gpu.memory();
-    println!("GPU: {} (splats by {:?})", gpu.adapter, gpu.splat_mode);
+    println!("GPU: {} (splats by {:?}, {:?})", gpu.adapter, gpu.splat_mode, gpu.shape());
     println!(
         "{} {name} (gpu): {w}×{h} {spp} spp, max depth {}, {secs:.3} s, {:.3} Msamples/s, {:.1} Mrays/s ({:.1} rays per sample), mean {:?}",
         path.display(),
@@ -89,6 +89,41 @@ pub(crate) fn bench(path: &std::path::Path, scene: &skelight::scene::Scene, name
         memory.path_state_bytes
     );
     Ok(())
+}
+
+/// `bench rays --device gpu`: the incoherent rays of the CPU's `bench rays` (origins on the
+/// surfaces, uniform directions), closest and any hit, through the GPU's traversal alone.
+#[cfg(feature = "gpu")]
+pub(crate) fn bench_rays(scenes: &[std::path::PathBuf], n: usize, rounds: usize) -> Result<()> {
+    println!("{:<28} {:>9} {:>13} {:>11} {:>7}", "scene", "triangles", "closest Mr/s", "any Mr/s", "hit %");
+    for path in scenes {
+        let scene = crate::load_scene(Some(path), &[])?;
+        let tris = scene.build_triangles();
+        let rays = crate::bench::incoherent_rays(&tris, n, 1);
+        let gpu = skelight_gpu::GpuRenderer::new(&scene, skelight_gpu::Estimator::Pt)?;
+        // A large finite t_max: an infinite one is not promised to survive shader compilers.
+        let packed = |any: f32| -> Vec<[f32; 8]> {
+            rays.iter().map(|r| [r.o.x, r.o.y, r.o.z, r.tmax.min(1e30), r.d.x, r.d.y, r.d.z, any]).collect()
+        };
+        let (closest, hits) = gpu.trace(&packed(0.0), rounds)?;
+        let (any, _) = gpu.trace(&packed(1.0), rounds)?;
+        let label = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+        let mrays = |t: std::time::Duration| n as f64 / t.as_secs_f64() / 1e6;
+        println!(
+            "{label:<28} {:>9} {:>13.1} {:>11.1} {:>7.2}  [{}]",
+            tris.len(),
+            mrays(closest),
+            mrays(any),
+            100.0 * hits as f64 / n as f64,
+            gpu.adapter
+        );
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "gpu"))]
+pub(crate) fn bench_rays(_: &[std::path::PathBuf], _: usize, _: usize) -> Result<()> {
+    bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu")
 }
 
 #[cfg(not(feature = "gpu"))]

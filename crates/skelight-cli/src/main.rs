@@ -191,6 +191,9 @@ enum BenchKind {
         /// Measurement rounds, each timing every backend in turn; the best of each is shown.
         #[arg(long, default_value_t = 5)]
         rounds: usize,
+        /// cpu (the CPU's accelerators), or gpu (the GPU kernels' traversal alone).
+        #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
+        device: String,
     },
     /// Time per stage and peak memory of the empty-space analysis (best of --runs).
     Skeleton {
@@ -342,8 +345,11 @@ fn bench(what: BenchKind) -> Result<()> {
             };
             bench::skeleton(&scene, &settings, runs.max(1))
         }
-        BenchKind::Rays { scenes, rays, threads, rounds } => {
+        BenchKind::Rays { scenes, rays, threads, rounds, device } => {
             rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().ok();
+            if device == "gpu" {
+                return gpu_cmd::bench_rays(&scenes, rays, rounds);
+            }
             println!(
                 "{:<28} {:>9} {:>8} {:>10} {:>13} {:>11} {:>7}",
                 "scene", "triangles", "backend", "build ms", "closest Mr/s", "any Mr/s", "hit %"

@@ -200,17 +200,14 @@ fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
     return l;
 }
 
-@compute @workgroup_size(8, 8)
-fn camera_main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let px = P.x0 + id.x;
-    let py = P.y0 + id.y;
-    if (px >= P.width || py >= P.height) {
-        return;
-    }
-    let i = py * P.width + px;
+// The camera samples of thread (px, py, z): samples z, z + P.slices, … of the dispatch, summed
+// into slice z of the film. With `light` (instant BPT's fused kernel) each camera sample is
+// followed by its light path, so one dispatch and no barrier separate the two passes.
+fn camera_samples(px: u32, py: u32, z: u32, light: bool) {
+    let i = z * P.width * P.height + py * P.width + px;
     var sum = sums[i];
     var sq_sum = squares[i];
-    for (var k = 0u; k < P.samples; k = k + 1u) {
+    for (var k = z; k < P.samples; k = k + P.slices) {
         seed_rng(px, py, P.first_sample + k, 0u);
         let pos = vec2<f32>(f32(px) + rnd(), f32(py) + rnd());
         let l = camera_radiance(pos);
@@ -225,8 +222,32 @@ fn camera_main(@builtin(global_invocation_id) id: vec3<u32>) {
         } else {
             sq_sum.w = sq_sum.w + 1.0;
         }
+        if (light) {
+            light_path(px, py, P.first_sample + k);
+        }
     }
     sums[i] = sum;
     squares[i] = sq_sum;
     count_rays();
+}
+
+@compute @workgroup_size(8, 8)
+fn camera_main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let px = P.x0 + id.x;
+    let py = P.y0 + id.y;
+    if (px >= P.width || py >= P.height) {
+        return;
+    }
+    camera_samples(px, py, id.z, false);
+}
+
+// Instant BPT in one kernel: the camera pass and the light pass of each sample in turn.
+@compute @workgroup_size(8, 8)
+fn fused_main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let px = P.x0 + id.x;
+    let py = P.y0 + id.y;
+    if (px >= P.width || py >= P.height) {
+        return;
+    }
+    camera_samples(px, py, id.z, true);
 }

@@ -34,7 +34,7 @@ struct Params {
     environment_map: u32,  // its lat-long map's descriptor in `data`, or NONE: constant
     aperture_radius: f32,  // the thin lens's (0: a pinhole)
     focus_distance: f32,
-    pad2: u32,
+    slices: u32,           // the dispatch's depth: thread z takes samples z, z + slices, …
     pad3: u32,
     pad4: u32,
 }
@@ -110,6 +110,7 @@ struct Emitter {
 @group(0) @binding(2) var<storage, read> tris: array<Tri>;
 @group(0) @binding(3) var<storage, read> materials: array<Material>;
 @group(0) @binding(4) var<storage, read> emitters: array<Emitter>;
+// One slice of width × height per thread z of a dispatch (P.slices), summed when read back.
 @group(0) @binding(5) var<storage, read_write> sums: array<vec4<f32>>;      // rgb, samples
 @group(0) @binding(6) var<storage, read_write> squares: array<vec4<f32>>;   // rgb², rejected
 // Six per triangle: its vertices' normals with their u in w, their three v, dp/du, dp/dv.
@@ -489,4 +490,23 @@ fn adjoint_correction(s: Surface, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
 fn survival(beta: vec3<f32>) -> f32 {
     let q = min(max(beta.x, max(beta.y, beta.z)), 0.95);
     return select(0.0, q, rnd() < q);
+}
+
+// `bench rays --device gpu`: one thread per ray, the traversal alone (no shading, no opacity
+// masks, as the CPU's `bench rays`), so that rays per second compare with the CPU's
+// accelerators and with published traversal kernels. Each ray is two vec4: origin and t_max,
+// direction and 1 for any hit (else closest).
+@group(0) @binding(11) var<storage, read> bench_rays: array<vec4<f32>>;
+@group(0) @binding(12) var<storage, read_write> bench_hits: array<u32>;   // per ray: 1 if it hit
+
+@compute @workgroup_size(64)
+fn rays_main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) n: vec3<u32>) {
+    let i = id.x + id.y * n.x * 64u;
+    if (2u * i + 1u >= arrayLength(&bench_rays)) {
+        return;
+    }
+    let a = bench_rays[2u * i];
+    let b = bench_rays[2u * i + 1u];
+    let hit = traverse(a.xyz, b.xyz, 0.0, a.w, b.w > 0.5);
+    bench_hits[i] = select(0u, 1u, hit.tri != NONE);
 }

@@ -181,7 +181,9 @@ pub struct Params {
     /// The thin lens's aperture radius (0: a pinhole) and focus distance.
     pub aperture_radius: f32,
     pub focus_distance: f32,
-    pub pad: [u32; 3],
+    /// The dispatch's depth: thread z takes samples z, z + slices, … into film slice z.
+    pub slices: u32,
+    pub pad: [u32; 2],
 }
 
 /// Everything the kernels read of a scene.

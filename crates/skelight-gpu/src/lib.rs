@@ -10,6 +10,7 @@
 //! other BSDFs and lights (issue 35).
 
 pub mod flatten;
+mod launch;
 mod tables;
 
 use skelight::film::Film;
@@ -17,6 +18,8 @@ use skelight::scene::Scene;
 use wgpu::util::DeviceExt;
 
 use flatten::{Flat, Params};
+pub use launch::LaunchShape;
+use launch::READBACK_BATCH;
 
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
@@ -32,21 +35,8 @@ pub enum GpuError {
     Readback(String),
 }
 
-/// Samples per pixel a dispatch takes at most on a GPU: long enough to amortise a dispatch,
-/// short enough for drivers' watchdogs, and few enough for f32 sums (the film adds them in
-/// f64).
-const SAMPLES_PER_DISPATCH: u32 = 16;
-/// The same on a CPU adapter (lavapipe): one. llvmpipe ends any shader loop after 65535
-/// iterations, counted across the calls of a thread rather than per call, so the BVH
-/// traversal of a thread's 15th light path through c09's glass ball already stopped early
-/// (a 10 % dark image at 16 samples per dispatch, exact at 4).
-const SAMPLES_PER_DISPATCH_CPU: u32 = 1;
 /// Storage buffers the kernels bind (scene: 5; film: sums, squares, splats; ray counters).
 const STORAGE_BUFFERS: u32 = 10;
-/// Samples per pixel summed on the device (in f32) before the film takes them (in f64).
-const READBACK_BATCH: u32 = 16;
-/// Pixels along a tile's side: any resolution fits any device's dispatch limits.
-const TILE: u32 = 512;
 
 /// What the GPU renders with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -97,6 +87,10 @@ pub struct Memory {
 pub struct GpuRenderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
+    /// The kernels' module, the BVH's nodes and the triangles (for [`GpuRenderer::trace`]).
+    module: wgpu::ShaderModule,
+    nodes: wgpu::Buffer,
+    tris: wgpu::Buffer,
     camera_pass: wgpu::ComputePipeline,
     light_pass: wgpu::ComputePipeline,
     estimator: Estimator,
@@ -111,7 +105,7 @@ pub struct GpuRenderer {
     pixels: usize,
     /// Floats per pixel in `splats`: 3, or 10 under the tent filter.
     splat_floats: usize,
-    samples_per_dispatch: u32,
+    shape: LaunchShape,
     rays: u64,
     memory: Memory,
     /// The adapter, in words (name, driver, type).
@@ -153,11 +147,28 @@ impl GpuRenderer {
     /// [`GpuRenderer::new`] with the way splats are added chosen ([`Splats::Auto`] or
     /// [`Splats::CompareAndSwap`]).
     pub fn with_splats(scene: &Scene, estimator: Estimator, splats: Splats) -> Result<GpuRenderer, GpuError> {
-        let flat = flatten::flatten(scene)?;
-        pollster::block_on(GpuRenderer::open(flat, estimator, splats))
+        GpuRenderer::with_shape(scene, estimator, splats, |_| {})
     }
 
-    async fn open(mut flat: Flat, estimator: Estimator, splats: Splats) -> Result<GpuRenderer, GpuError> {
+    /// [`GpuRenderer::with_splats`] with the launch shape changed by `adjust` after the
+    /// defaults and the environment have set it (tests and benchmarks: the samples do not
+    /// depend on it).
+    pub fn with_shape(
+        scene: &Scene,
+        estimator: Estimator,
+        splats: Splats,
+        adjust: impl FnOnce(&mut LaunchShape),
+    ) -> Result<GpuRenderer, GpuError> {
+        let flat = flatten::flatten(scene)?;
+        pollster::block_on(GpuRenderer::open(flat, estimator, splats, adjust))
+    }
+
+    async fn open(
+        mut flat: Flat,
+        estimator: Estimator,
+        splats: Splats,
+        adjust: impl FnOnce(&mut LaunchShape),
+    ) -> Result<GpuRenderer, GpuError> {
         flat.params.bidirectional = match estimator {
             Estimator::Pt => 0,
             Estimator::Ibpt => 1,
@@ -215,9 +226,14 @@ impl GpuRenderer {
             include_str!("camera_pass.wgsl"),
             include_str!("light_pass.wgsl"),
         ];
+        let mut shape = LaunchShape::from_env(info.device_type, flat.params.width * flat.params.height)?;
+        adjust(&mut shape);
+        shape.check()?;
+        let (wx, wy) = shape.workgroup;
+        let source = source.concat().replace("@workgroup_size(8, 8)", &format!("@workgroup_size({wx}, {wy})"));
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("skelight kernels"),
-            source: wgpu::ShaderSource::Wgsl(source.concat().into()),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
         });
         // One layout for both passes (each uses part of it).
         let binding = |i: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
@@ -259,7 +275,9 @@ impl GpuRenderer {
                 cache: None,
             })
         };
-        let (camera_pass, light_pass) = (pipeline("camera_main"), pipeline("light_main"));
+        let fused = shape.fused && estimator == Estimator::Ibpt;
+        let camera_pass = pipeline(if fused { "fused_main" } else { "camera_main" });
+        let light_pass = pipeline("light_main");
         let pixels = (flat.params.width * flat.params.height) as usize;
         // Light splats (rgb), and under the tent filter the camera samples' weighted sums (7).
         let splat_floats = if flat.params.filter_radius > 0.0 { 10 } else { 3 };
@@ -272,7 +290,7 @@ impl GpuRenderer {
         let accumulator = |label| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
-                size: (pixels * 16) as u64,
+                size: (pixels * 16 * shape.slices as usize) as u64,
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
@@ -293,7 +311,7 @@ impl GpuRenderer {
         });
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            size: (pixels * (32 + 4 * splat_floats) + 8) as u64,
+            size: (pixels * (32 * shape.slices as usize + 4 * splat_floats) + 8) as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -338,6 +356,9 @@ impl GpuRenderer {
         Ok(GpuRenderer {
             device,
             queue,
+            module,
+            nodes,
+            tris,
             camera_pass,
             light_pass,
             estimator,
@@ -350,14 +371,14 @@ impl GpuRenderer {
             counters,
             readback,
             rays: 0,
-            memory: Memory { scene_bytes, film_bytes_per_pixel: 32 + 4 * splat_floats as u64, path_state_bytes: 0 },
+            memory: Memory {
+                scene_bytes,
+                film_bytes_per_pixel: 32 * shape.slices as u64 + 4 * splat_floats as u64,
+                path_state_bytes: 0,
+            },
             splat_floats,
             pixels,
-            samples_per_dispatch: if info.device_type == wgpu::DeviceType::Cpu {
-                SAMPLES_PER_DISPATCH_CPU
-            } else {
-                SAMPLES_PER_DISPATCH
-            },
+            shape,
             adapter: name,
             splat_mode: if float_atomics { Splats::FloatAtomics } else { Splats::CompareAndSwap },
         })
@@ -390,22 +411,26 @@ impl GpuRenderer {
             encoder.clear_buffer(&self.splats, 0, None);
             encoder.clear_buffer(&self.counters, 0, None);
             self.queue.submit([encoder.finish()]);
-            for offset in (0..n).step_by(self.samples_per_dispatch as usize) {
-                let samples = self.samples_per_dispatch.min(n - offset);
-                for y0 in (0..h).step_by(TILE as usize) {
-                    for x0 in (0..w).step_by(TILE as usize) {
-                        let p = Params { first_sample: first + done + offset, samples, x0, y0, ..self.params };
+            let LaunchShape { tile, samples_per_dispatch, workgroup: (wx, wy), slices, fused } = self.shape;
+            let light_pass = self.estimator != Estimator::Pt && !(fused && self.estimator == Estimator::Ibpt);
+            for offset in (0..n).step_by(samples_per_dispatch as usize) {
+                let samples = samples_per_dispatch.min(n - offset);
+                for y0 in (0..h).step_by(tile as usize) {
+                    for x0 in (0..w).step_by(tile as usize) {
+                        let p = Params { first_sample: first + done + offset, samples, x0, y0, slices, ..self.params };
                         self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
                         let mut encoder = self.device.create_command_encoder(&Default::default());
                         {
                             let mut pass = encoder.begin_compute_pass(&Default::default());
                             pass.set_bind_group(0, &self.bind_group, &[]);
-                            let (tw, th) = (TILE.min(w - x0), TILE.min(h - y0));
+                            let (tw, th) = (tile.min(w - x0), tile.min(h - y0));
                             pass.set_pipeline(&self.camera_pass);
-                            pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
-                            if self.estimator != Estimator::Pt {
+                            // Slices beyond the samples of the dispatch would have nothing to do.
+                            let depth = slices.min(samples);
+                            pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
+                            if light_pass {
                                 pass.set_pipeline(&self.light_pass);
-                                pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
+                                pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
                             }
                         }
                         self.queue.submit([encoder.finish()]);
@@ -417,6 +442,101 @@ impl GpuRenderer {
             on_batch(done);
         }
         Ok(())
+    }
+
+    /// `bench rays --device gpu`: traces `rays` (origin, t_max, direction, 1 for any hit else
+    /// 0) with the BVH traversal alone, no shading, `rounds` times after a warm-up, and gives
+    /// the best time and how many rays hit.
+    pub fn trace(&self, rays: &[[f32; 8]], rounds: usize) -> Result<(std::time::Duration, u64), GpuError> {
+        let entry = |i: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding: i,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = self.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("rays"),
+            entries: &[entry(1, true), entry(2, true), entry(11, true), entry(12, false)],
+        });
+        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("rays_main"),
+            layout: Some(&self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("rays"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            })),
+            module: &self.module,
+            entry_point: Some("rays_main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let ray_buffer = storage(&self.device, "bench rays", bytemuck::cast_slice(rays));
+        let bytes = (rays.len().max(1) * 4) as u64;
+        let hits = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bench hits"),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bench hits readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("rays"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 1, resource: self.nodes.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: self.tris.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 11, resource: ray_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 12, resource: hits.as_entire_binding() },
+            ],
+        });
+        // Workgroups of 64 rays, laid out in two dimensions within the per-dimension limit.
+        let groups = (rays.len() as u32).div_ceil(64).max(1);
+        let (gx, gy) = (groups.min(65535), groups.div_ceil(65535));
+        let wait = |device: &wgpu::Device| {
+            device
+                .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+                .map_err(|e| GpuError::Readback(e.to_string()))
+        };
+        let mut best = std::time::Duration::MAX;
+        for round in 0..=rounds {
+            let mut encoder = self.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            let start = std::time::Instant::now();
+            self.queue.submit([encoder.finish()]);
+            wait(&self.device)?;
+            // Round 0 warms up (the driver's compilation, first touches of the buffers).
+            if round > 0 {
+                best = best.min(start.elapsed());
+            }
+        }
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&hits, 0, &readback, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        let slice = readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        wait(&self.device)?;
+        let data = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
+        let hit_count = bytemuck::cast_slice::<u8, u32>(&data)[..rays.len()].iter().map(|&h| h as u64).sum();
+        Ok((best, hit_count))
+    }
+
+    /// How the kernels are launched (tile, samples per dispatch, workgroup, slices).
+    pub fn shape(&self) -> LaunchShape {
+        self.shape
     }
 
     /// Rays traced (closest-hit and shadow) since the renderer was made.
@@ -431,7 +551,7 @@ impl GpuRenderer {
 
     /// Adds the accumulators of a batch of `spp` samples per pixel to `film` in f64.
     fn read_into(&mut self, film: &mut Film, spp: u32) -> Result<(), GpuError> {
-        let bytes = (self.pixels * 16) as u64;
+        let bytes = (self.pixels * 16 * self.shape.slices as usize) as u64;
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&self.sums, 0, &self.readback, 0, bytes);
         encoder.copy_buffer_to_buffer(&self.squares, 0, &self.readback, bytes, bytes);
@@ -451,22 +571,27 @@ impl GpuRenderer {
         {
             let data = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
             let values: &[f32] = bytemuck::cast_slice(&data);
-            let (sums, rest) = values.split_at(self.pixels * 4);
-            let (squares, rest) = rest.split_at(self.pixels * 4);
+            let slice_floats = self.pixels * 4;
+            let (sums, rest) = values.split_at(slice_floats * self.shape.slices as usize);
+            let (squares, rest) = rest.split_at(slice_floats * self.shape.slices as usize);
             let (splats, rest) = rest.split_at(self.pixels * 3);
             let (filtered, counters) = rest.split_at(self.pixels * (self.splat_floats - 3));
             let (lo, hi) = (counters[0].to_bits() as u64, counters[1].to_bits() as u64);
             self.rays += lo | hi << 32;
             let f = |a: &[f32]| [a[0] as f64, a[1] as f64, a[2] as f64];
             for i in 0..self.pixels {
-                let (s, q) = (&sums[i * 4..i * 4 + 4], &squares[i * 4..i * 4 + 4]);
-                if filtered.is_empty() {
-                    film.add_pixel_samples(i, f(s), f(q), s[3] as f64);
-                } else {
+                for z in 0..self.shape.slices as usize {
+                    let k = z * slice_floats + i * 4;
+                    let (s, q) = (&sums[k..k + 4], &squares[k..k + 4]);
+                    if filtered.is_empty() {
+                        film.add_pixel_samples(i, f(s), f(q), s[3] as f64);
+                    }
+                    film.rejected += q[3] as u64;
+                }
+                if !filtered.is_empty() {
                     let t = &filtered[i * 7..i * 7 + 7];
                     film.add_pixel_samples(i, f(t), f(&t[3..]), t[6] as f64);
                 }
-                film.rejected += q[3] as u64;
             }
             if self.estimator != Estimator::Pt {
                 for i in 0..self.pixels {

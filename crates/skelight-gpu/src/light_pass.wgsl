@@ -209,7 +209,7 @@ fn light_main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (px >= P.width || py >= P.height) {
         return;
     }
-    for (var k = 0u; k < P.samples; k = k + 1u) {
+    for (var k = id.z; k < P.samples; k = k + P.slices) {
         light_path(px, py, P.first_sample + k);
     }
     count_rays();

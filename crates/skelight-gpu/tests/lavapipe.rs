@@ -36,6 +36,67 @@ fn render(gpu: &mut GpuRenderer, scene: &Scene, spp: u32, seed: u64) -> Film {
     film
 }
 
+/// The launch shape (tiles, samples per dispatch, slices, the fused instant-BPT kernel,
+/// workgroup) changes which thread takes a (pixel, sample), never its random numbers: the
+/// same seed gives the same image up to the order of float sums. (It found tiles narrower
+/// than a workgroup rendering their neighbour's pixels twice: now refused.)
+#[test]
+fn the_launch_shape_does_not_change_the_samples() {
+    let mut scene = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 24, 16);
+    scene.settings.max_depth = 4;
+    for estimator in [Estimator::Pt, Estimator::Ibpt] {
+        let Some(mut plain) = open_with(&scene, estimator, Splats::Auto).unwrap() else { return };
+        let mut shaped = GpuRenderer::with_shape(&scene, estimator, Splats::Auto, |s| {
+            (s.tile, s.samples_per_dispatch, s.slices, s.fused, s.workgroup) = (16, 4, 4, true, (16, 2));
+        })
+        .unwrap();
+        // A tile narrower than a workgroup would render pixels of the next tile twice.
+        let narrow = GpuRenderer::with_shape(&scene, estimator, Splats::Auto, |s| (s.tile, s.workgroup) = (8, (16, 2)));
+        assert!(matches!(narrow, Err(GpuError::Invalid(_))), "a tile of 8 under workgroups of 16 is refused");
+        let (a, b) = (render(&mut plain, &scene, 8, 5).image(), render(&mut shaped, &scene, 8, 5).image());
+        let mut worst = 0f32;
+        for (p, q) in a.pixels.iter().zip(&b.pixels) {
+            for (u, v) in [(p.r, q.r), (p.g, q.g), (p.b, q.b)] {
+                worst = worst.max((u - v).abs() / (u.abs() + v.abs()).max(1e-3));
+            }
+        }
+        println!("{}: worst relative difference {worst:.2e} between the launch shapes", estimator.name());
+        assert!(worst < 1e-4, "{}: the launch shape changed the image (relative difference {worst})", estimator.name());
+    }
+}
+
+/// `bench rays --device gpu` measures the kernels' traversal alone: it must find what the
+/// CPU's BVH finds. Rays from points of veach-door's bounding box in uniform directions; the
+/// counts may differ only where a ray grazes an edge (both tests are watertight, but the
+/// trees differ).
+#[test]
+fn the_gpu_traversal_hits_what_the_cpu_bvh_hits() {
+    use skelight::geometry::{Accelerator, Bvh, NoFilter, Ray};
+    use skelight::sampling::{uniform_sphere, Rng};
+    let scene = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 8, 8);
+    let Some(gpu) = open(&scene, Estimator::Pt).unwrap() else { return };
+    let bvh = Bvh::build(&scene.build_triangles());
+    let bounds = scene.bounds();
+    let rays: Vec<Ray> = (0..20_000u64)
+        .map(|i| {
+            let mut rng = Rng::new(3, i, 0);
+            let (lo, hi) = (bounds.min, bounds.max);
+            let mut at = |a: f32, b: f32| a + (b - a) * rng.next_f32();
+            let o = skelight::math::vec3(at(lo.x, hi.x), at(lo.y, hi.y), at(lo.z, hi.z));
+            Ray::new(o, uniform_sphere(rng.next_2d()))
+        })
+        .collect();
+    let cpu = rays.iter().filter(|r| bvh.intersect(r, &NoFilter).is_some()).count() as i64;
+    let packed = |any: f32| -> Vec<[f32; 8]> {
+        rays.iter().map(|r| [r.o.x, r.o.y, r.o.z, 1e30, r.d.x, r.d.y, r.d.z, any]).collect()
+    };
+    let (_, closest) = gpu.trace(&packed(0.0), 1).unwrap();
+    let (_, any) = gpu.trace(&packed(1.0), 1).unwrap();
+    println!("hits of 20 000 rays: CPU {cpu}, GPU closest {closest}, GPU any {any}");
+    assert!((closest as i64 - cpu).abs() <= 20, "GPU closest hits {closest} against the CPU's {cpu}");
+    assert_eq!(closest, any, "closest and any hit disagree on which rays hit");
+}
+
 /// Samples per pixel (lavapipe is slow; the statistics take the noise into account).
 const SPP: u32 = 16;
 

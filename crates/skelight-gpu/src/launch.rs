@@ -1,0 +1,131 @@
+//! How the megakernels are launched: tiles, samples per dispatch, workgroups, threads per
+//! pixel (slices), and whether instant BPT's two passes run as one kernel, each default
+//! chosen by measurement on an H200 (docs/benchmarks.md).
+
+use crate::GpuError;
+
+/// Samples per pixel summed on the device (in f32) before the film takes them (in f64).
+pub(crate) const READBACK_BATCH: u32 = 16;
+/// Samples per pixel a dispatch takes at most on a GPU: long enough to amortise a dispatch,
+/// short enough for drivers' watchdogs, and few enough for f32 sums (the film adds them in
+/// f64).
+const SAMPLES_PER_DISPATCH: u32 = 16;
+/// The same on a CPU adapter (lavapipe): one. llvmpipe ends any shader loop after 65535
+/// iterations, counted across the calls of a thread rather than per call, so the BVH
+/// traversal of a thread's 15th light path through c09's glass ball already stopped early
+/// (a 10 % dark image at 16 samples per dispatch, exact at 4).
+const SAMPLES_PER_DISPATCH_CPU: u32 = 1;
+/// Pixels along a tile's side: any resolution fits any device's dispatch limits.
+const TILE: u32 = 512;
+/// Threads of a workgroup along x and y (one thread per pixel of a tile).
+const WORKGROUP: (u32, u32) = (8, 8);
+
+/// Threads a dispatch aims at: with fewer pixels than this in a tile, each pixel gets several
+/// threads (slices), each taking every slices-th of its samples into its own slice of the
+/// film's sums. Measured on an H200 (docs/benchmarks.md, 2026-11-28): at 512×288, 4 slices
+/// (590 k threads) against 1 gave ibpt 1.15× (sibenik, veach-door) to 1.30× (veach-ajar)
+/// and pt 1.10-1.51×; at 160×90, 8 slices gave 3.1× (ibpt) and 3.6× (pt).
+const THREADS_PER_DISPATCH: u32 = 1 << 19;
+/// Film slices at most (each costs 32 bytes per pixel).
+const MAX_SLICES: u32 = 16;
+/// Whether instant BPT runs its camera and light passes in one kernel. Measured off: without
+/// the barrier between the passes but with the registers of both, it was 0.93-0.96× the two
+/// kernels at 512×288 (4 slices) on an H200, 1.07× at 160×90 (8 slices).
+const FUSED: bool = false;
+
+/// The megakernels' launch shape. The defaults are the constants above; `bench/gpu_device.sh`
+/// sweeps them on a data-centre GPU through the environment (`SKELIGHT_GPU_TILE`,
+/// `SKELIGHT_GPU_SAMPLES_PER_DISPATCH`, `SKELIGHT_GPU_WORKGROUP` as `8x8`,
+/// `SKELIGHT_GPU_SLICES`, `SKELIGHT_GPU_FUSED` as 0 or 1), so the shape is chosen by
+/// measurement rather than by guess. The image does not depend on it: every (pixel, sample)
+/// draws the same random numbers whatever thread or dispatch takes it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LaunchShape {
+    pub tile: u32,
+    pub samples_per_dispatch: u32,
+    pub workgroup: (u32, u32),
+    /// Threads per pixel in a dispatch (its z extent): more threads in flight for small
+    /// images, at the cost of a film slice each.
+    pub slices: u32,
+    /// Instant BPT's camera and light passes in one kernel, without the barrier between them.
+    pub fused: bool,
+}
+
+impl LaunchShape {
+    /// The defaults for an adapter of `device_type` and an image of `pixels`, overridden by
+    /// the environment.
+    pub(crate) fn from_env(device_type: wgpu::DeviceType, pixels: u32) -> Result<LaunchShape, GpuError> {
+        let var = |name: &str| std::env::var(name).ok().filter(|v| !v.is_empty());
+        let number = |name: &str, default: u32, max: u32| -> Result<u32, GpuError> {
+            match var(name) {
+                None => Ok(default),
+                Some(v) => match v.parse::<u32>() {
+                    Ok(n) if (1..=max).contains(&n) => Ok(n),
+                    _ => Err(GpuError::Invalid(format!("{name}={v}: expected a whole number from 1 to {max}"))),
+                },
+            }
+        };
+        let workgroup = match var("SKELIGHT_GPU_WORKGROUP") {
+            None => WORKGROUP,
+            Some(v) => {
+                let parsed =
+                    v.split_once('x').and_then(|(x, y)| Some((x.parse::<u32>().ok()?, y.parse::<u32>().ok()?)));
+                match parsed {
+                    // Lavapipe renders workgroups narrower than its 8 lanes wrongly (4x4 and
+                    // 2x8 gave a 2.6x too bright veach-door, cut paths), so X starts at 8.
+                    Some((x, y)) if x >= 8 && y >= 1 && x * y <= 256 => (x, y),
+                    _ => {
+                        return Err(GpuError::Invalid(format!(
+                            "SKELIGHT_GPU_WORKGROUP={v}: expected XxY with X at least 8 and X·Y at most 256, e.g. 8x8"
+                        )))
+                    }
+                }
+            }
+        };
+        let cpu = device_type == wgpu::DeviceType::Cpu;
+        let tile = number("SKELIGHT_GPU_TILE", TILE, 4096)?;
+        let samples_per_dispatch = number(
+            "SKELIGHT_GPU_SAMPLES_PER_DISPATCH",
+            if cpu { SAMPLES_PER_DISPATCH_CPU } else { SAMPLES_PER_DISPATCH },
+            READBACK_BATCH,
+        )?;
+        let tile_pixels = pixels.min(tile * tile).max(1);
+        let slices = THREADS_PER_DISPATCH.div_ceil(tile_pixels).clamp(1, MAX_SLICES.min(samples_per_dispatch));
+        let fused = match var("SKELIGHT_GPU_FUSED").as_deref() {
+            None => FUSED,
+            Some("0") => false,
+            Some("1") => true,
+            Some(v) => return Err(GpuError::Invalid(format!("SKELIGHT_GPU_FUSED={v}: expected 0 or 1"))),
+        };
+        Ok(LaunchShape {
+            tile,
+            samples_per_dispatch,
+            workgroup,
+            slices: number("SKELIGHT_GPU_SLICES", slices, MAX_SLICES)?,
+            fused,
+        })
+    }
+
+    /// Refuses a shape the kernels cannot take (one set in code rather than the environment).
+    pub(crate) fn check(&self) -> Result<(), GpuError> {
+        let (x, y) = self.workgroup;
+        let ok = (1..=4096).contains(&self.tile)
+            && (1..=READBACK_BATCH).contains(&self.samples_per_dispatch)
+            && (1..=MAX_SLICES).contains(&self.slices)
+            && x >= 8
+            && y >= 1
+            && x * y <= 256
+            // A tile is a whole number of workgroups, or a tile's last threads would take
+            // pixels of the next tile, which would then be rendered twice.
+            && self.tile.is_multiple_of(x)
+            && self.tile.is_multiple_of(y);
+        if ok {
+            Ok(())
+        } else {
+            Err(GpuError::Invalid(format!(
+                "launch shape {self:?}: tile 1-4096, samples per dispatch 1-{READBACK_BATCH}, slices 1-{MAX_SLICES}, \
+                 workgroup X at least 8, X·Y at most 256, the tile a multiple of X and Y"
+            )))
+        }
+    }
+}
