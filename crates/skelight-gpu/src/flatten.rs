@@ -581,9 +581,15 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
     Ok(Flat { nodes, tris, attributes, materials, emitters, data: tables.data, params })
 }
 
-/// A binary BVH over `tris` by median splits along the longest axis of the centroids' box
-/// (leaves of at most 4 triangles), flattened depth-first: a node's left child follows it,
-/// and `miss` is the node after its subtree. Returns the nodes and the triangle order.
+/// Bins per axis of the surface-area heuristic's split search.
+const SAH_BINS: usize = 16;
+
+/// A binary BVH over `tris` (leaves of at most 4 triangles), each split the best of
+/// [`SAH_BINS`] planes per axis by the surface-area heuristic (binned, as Wald 2007), or the
+/// median along the longest axis where all centroids share one bin; flattened depth-first: a
+/// node's left child follows it, and `miss` is the node after its subtree. Returns the nodes
+/// and the triangle order. On an H200 the SAH tree traced incoherent rays 2.2–2.5× faster
+/// than median splits alone (the first version) and doubled pt and ibpt (docs/benchmarks.md).
 fn build_bvh(tris: &[Tri]) -> (Vec<Node>, Vec<u32>) {
     let centroid = |t: &Tri| [0, 1, 2].map(|k| (t.v0[k] + t.v1[k] + t.v2[k]) / 3.0);
     let mut order: Vec<u32> = (0..tris.len() as u32).collect();
@@ -618,11 +624,29 @@ fn build_bvh(tris: &[Tri]) -> (Vec<Node>, Vec<u32>) {
                 chi[k] = chi[k].max(c[k]);
             }
         }
-        let axis = (0..3).max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b]))).unwrap_or(0);
-        let mid = ids.len() / 2;
-        ids.select_nth_unstable_by(mid, |&a, &b| {
-            centroid(&tris[a as usize])[axis].total_cmp(&centroid(&tris[b as usize])[axis])
+        // Partition in place by the SAH's plane (centroids below it first), unless rounding
+        // at the plane left one side empty.
+        let sah = sah_split(tris, ids, clo, chi, centroid).map(|(axis, plane)| {
+            let mut m = 0;
+            for k in 0..ids.len() {
+                if centroid(&tris[ids[k] as usize])[axis] < plane {
+                    ids.swap(k, m);
+                    m += 1;
+                }
+            }
+            m
         });
+        let mid = match sah.filter(|&m| m > 0 && m < ids.len()) {
+            Some(m) => m,
+            None => {
+                let axis = (0..3).max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b]))).unwrap_or(0);
+                let mid = ids.len() / 2;
+                ids.select_nth_unstable_by(mid, |&a, &b| {
+                    centroid(&tris[a as usize])[axis].total_cmp(&centroid(&tris[b as usize])[axis])
+                });
+                mid
+            }
+        };
         let (left, right) = ids.split_at_mut(mid);
         build(tris, left, first, nodes, centroid);
         // The left subtree's nodes that end it (its root and the last node of every right
@@ -631,6 +655,64 @@ fn build_bvh(tris: &[Tri]) -> (Vec<Node>, Vec<u32>) {
         let right_start = nodes.len();
         link(nodes, me + 1, right_start as u32);
         build(tris, right, first + mid as u32, nodes, centroid);
+    }
+    /// The cheapest SAH plane (axis, position) over the bin boundaries of the centroids' box
+    /// `clo`–`chi`, leaving triangles on both sides; `None` where no plane does.
+    fn sah_split(
+        tris: &[Tri],
+        ids: &[u32],
+        clo: [f32; 3],
+        chi: [f32; 3],
+        centroid: &dyn Fn(&Tri) -> [f32; 3],
+    ) -> Option<(usize, f32)> {
+        let area = |lo: [f32; 3], hi: [f32; 3]| {
+            let e = [0, 1, 2].map(|k| (hi[k] - lo[k]).max(0.0));
+            e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+        };
+        let grow = |b: &mut ([f32; 3], [f32; 3]), o: &([f32; 3], [f32; 3])| {
+            for k in 0..3 {
+                b.0[k] = b.0[k].min(o.0[k]);
+                b.1[k] = b.1[k].max(o.1[k]);
+            }
+        };
+        let empty = ([f32::MAX; 3], [f32::MIN; 3]);
+        let mut best: Option<(f32, usize, f32)> = None;
+        for axis in 0..3 {
+            let extent = chi[axis] - clo[axis];
+            if extent <= 0.0 || !extent.is_finite() {
+                continue;
+            }
+            let bin = |c: f32| (((c - clo[axis]) / extent * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
+            let mut counts = [0usize; SAH_BINS];
+            let mut boxes = [empty; SAH_BINS];
+            for &i in ids {
+                let t = &tris[i as usize];
+                let b = bin(centroid(t)[axis]);
+                counts[b] += 1;
+                grow(&mut boxes[b], &bounds(tris, &[i]));
+            }
+            // Right-to-left sweep: the cost of the right side of each plane.
+            let mut right_cost = [0f32; SAH_BINS];
+            let (mut acc, mut n) = (empty, 0usize);
+            for b in (1..SAH_BINS).rev() {
+                grow(&mut acc, &boxes[b]);
+                n += counts[b];
+                right_cost[b] = if n > 0 { area(acc.0, acc.1) * n as f32 } else { 0.0 };
+            }
+            let (mut acc, mut n) = (empty, 0usize);
+            for b in 1..SAH_BINS {
+                grow(&mut acc, &boxes[b - 1]);
+                n += counts[b - 1];
+                if n == 0 || n == ids.len() {
+                    continue;
+                }
+                let cost = area(acc.0, acc.1) * n as f32 + right_cost[b];
+                if best.is_none_or(|(c, _, _)| cost < c) {
+                    best = Some((cost, axis, clo[axis] + extent * b as f32 / SAH_BINS as f32));
+                }
+            }
+        }
+        best.map(|(_, axis, plane)| (axis, plane))
     }
     /// Sets the miss link of the subtree rooted at `root` to `next`: the root's, and that
     /// of every node whose miss pointed past the subtree (NONE while building).

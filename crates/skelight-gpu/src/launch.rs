@@ -22,15 +22,15 @@ const WORKGROUP: (u32, u32) = (8, 8);
 
 /// Threads a dispatch aims at: with fewer pixels than this in a tile, each pixel gets several
 /// threads (slices), each taking every slices-th of its samples into its own slice of the
-/// film's sums. Measured on an H200 (docs/benchmarks.md, 2026-11-28): at 512×288, 4 slices
+/// film's sums. Measured on an H200 (docs/benchmarks.md, 2026-11-28, median-split tree): at 512×288, 4 slices
 /// (590 k threads) against 1 gave ibpt 1.15× (sibenik, veach-door) to 1.30× (veach-ajar)
 /// and pt 1.10-1.51×; at 160×90, 8 slices gave 3.1× (ibpt) and 3.6× (pt).
 const THREADS_PER_DISPATCH: u32 = 1 << 19;
 /// Film slices at most (each costs 32 bytes per pixel).
 const MAX_SLICES: u32 = 16;
 /// Whether instant BPT runs its camera and light passes in one kernel. Measured off: without
-/// the barrier between the passes but with the registers of both, it was 0.93-0.96× the two
-/// kernels at 512×288 (4 slices) on an H200, 1.07× at 160×90 (8 slices).
+/// the barrier between the passes but with the registers of both, it was 0.73-0.82× the two
+/// kernels at 512×288 (4 slices, SAH tree) on an H200 (0.93-0.96× with median splits).
 const FUSED: bool = false;
 
 /// The megakernels' launch shape. The defaults are the constants above; `bench/gpu_device.sh`
