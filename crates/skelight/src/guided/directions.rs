@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use super::SkeletonGuide;
 use crate::geometry::Ray;
 use crate::math::{Frame, Vec2, Vec3};
-use crate::sampling::{power_cosine, power_cosine_pdf};
+use crate::sampling::{power_cosine, power_cosine_pdf, powi_by_squaring};
 use crate::scene::Scene;
 
 /// Targets whose c'_i is below this share of the node's largest are dropped (and the rest
@@ -209,7 +209,41 @@ pub fn sample_lobe(strength: f32, axis: Vec3, u: Vec2) -> Vec3 {
 /// (unit, world space).
 #[inline]
 pub fn mixture_pdf(targets: &[Target], strength: f32, x: Vec3, normal: Vec3, wo: Vec3) -> f32 {
+    if strength == strength.trunc() && (1.0..=1024.0).contains(&strength) {
+        // Whole strengths (the default and every adaptive candidate): the lobes' common
+        // factor (s+1)/2π taken out and no branch per target, so the loop stays tight (this
+        // sum is most of skelpt's cost per vertex).
+        let n = strength as u32;
+        let sum: f32 = targets
+            .iter()
+            .map(|t| t.probability * powi_by_squaring(axis(x, t.point, normal).dot(wo).max(0.0), n))
+            .sum();
+        return (strength + 1.0) / (2.0 * std::f32::consts::PI) * sum;
+    }
     targets.iter().map(|t| t.probability * lobe_pdf(strength, axis(x, t.point, normal).dot(wo))).sum()
+}
+
+/// [`mixture_pdf`] for several strengths at once (the adaptive mode's candidates): each
+/// target's axis and cosine once, then its lobe per strength.
+#[inline]
+pub fn mixture_pdfs<const N: usize>(
+    targets: &[Target],
+    strengths: &[f32; N],
+    x: Vec3,
+    normal: Vec3,
+    wo: Vec3,
+) -> [f32; N] {
+    let mut pdfs = [0.0; N];
+    for t in targets {
+        let cos = axis(x, t.point, normal).dot(wo);
+        if cos <= 0.0 {
+            continue;
+        }
+        for (pdf, &s) in pdfs.iter_mut().zip(strengths) {
+            *pdf += t.probability * lobe_pdf(s, cos);
+        }
+    }
+    pdfs
 }
 
 /// Draws a direction from eq. 167's mixture: a target by its probability (`u_pick`), then
@@ -218,4 +252,35 @@ pub fn mixture_pdf(targets: &[Target], strength: f32, x: Vec3, normal: Vec3, wo:
 pub fn sample_mixture(targets: &[Target], strength: f32, x: Vec3, normal: Vec3, u_pick: f32, u: Vec2) -> Vec3 {
     let i = targets.partition_point(|t| t.cumulative <= u_pick).min(targets.len() - 1);
     sample_lobe(strength, axis(x, targets[i].point, normal), u)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::vec3;
+
+    /// The adaptive mode's candidates evaluated at once equal the mixture per strength, and
+    /// cos^n by squaring equals powf (checked by dropping a target from `mixture_pdfs`: fails).
+    #[test]
+    fn mixture_pdfs_equal_the_mixture_per_strength() {
+        let targets = [
+            Target { point: vec3(1.0, 2.0, 0.5), probability: 0.25, cumulative: 0.25 },
+            Target { point: vec3(-1.0, 1.0, 0.0), probability: 0.5, cumulative: 0.75 },
+            Target { point: vec3(0.2, 3.0, -0.4), probability: 0.25, cumulative: 1.0 },
+        ];
+        let (x, normal) = (vec3(0.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0));
+        let strengths = [1.0, 4.0, 16.0, 64.0, 2.5, 0.0];
+        for wo in [vec3(0.3, 0.9, 0.1), vec3(-0.6, 0.7, 0.2), vec3(0.0, -1.0, 0.0)] {
+            let wo = wo.normalize();
+            let all = mixture_pdfs(&targets, &strengths, x, normal, wo);
+            for (k, &s) in strengths.iter().enumerate() {
+                let one = mixture_pdf(&targets, s, x, normal, wo);
+                assert!((all[k] - one).abs() <= 1e-6 * one.max(1.0), "strength {s}: {} against {one}", all[k]);
+            }
+        }
+        for n in [0u32, 1, 2, 7, 8, 64, 1000] {
+            let (by_squaring, powf) = (crate::sampling::powi_by_squaring(0.93, n), 0.93f32.powf(n as f32));
+            assert!((by_squaring - powf).abs() <= 1e-5 * powf.max(1e-30), "0.93^{n}: {by_squaring} against {powf}");
+        }
+    }
 }

@@ -19,7 +19,7 @@ use super::params::{ParamKind, ParamSpec, Params};
 use super::pt::{trace, DirectionGuide, GuidedStep, GuidedVertex};
 use super::{Integrator, Preparation, PrepareError, SampleContext, Scratch};
 use crate::guided::analysis::prepare_guide;
-use crate::guided::directions::{mixture_pdf, sample_mixture, Directions, Target};
+use crate::guided::directions::{mixture_pdf, mixture_pdfs, sample_mixture, Directions, Target};
 use crate::guided::importance::{importance_nodes, incident_power};
 use crate::guided::{GuideSettings, SkeletonGuide};
 use crate::material::{Bsdf, BsdfModel};
@@ -347,8 +347,8 @@ fn observe(directions: &Directions, total: crate::color::Rgb, learning: &mut Lea
             continue;
         }
         let sums = &mut learning.moments.sums[node];
-        for (i, &s) in STRENGTHS.iter().enumerate() {
-            let skel = mixture_pdf(targets, s, step.x, step.normal, step.wo);
+        let skels = mixture_pdfs(targets, &STRENGTHS, step.x, step.normal, step.wo);
+        for (i, &skel) in skels.iter().enumerate() {
             for (j, &c) in SELECTIONS.iter().enumerate() {
                 let p = ((1.0 - c) * step.bsdf_pdf + c * skel) as f64;
                 sums[i * SELECTIONS.len() + j] += if p > 0.0 { h * h / (p * step.pdf as f64) } else { f64::INFINITY };
