@@ -145,7 +145,7 @@ pub struct Emitter {
     pub beam_width: f32,
 }
 
-/// The kernels' uniform block (`Params` in common.wgsl), 208 bytes.
+/// The kernels' uniform block (`Params` in common.wgsl), 224 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
 pub struct Params {

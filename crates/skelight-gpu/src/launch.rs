@@ -71,9 +71,12 @@ impl LaunchShape {
                 let parsed =
                     v.split_once('x').and_then(|(x, y)| Some((x.parse::<u32>().ok()?, y.parse::<u32>().ok()?)));
                 match parsed {
-                    // Lavapipe renders workgroups narrower than its 8 lanes wrongly (4x4 and
-                    // 2x8 gave a 2.6x too bright veach-door, cut paths), so X starts at 8.
-                    Some((x, y)) if x >= 8 && y >= 1 && x * y <= 256 => (x, y),
+                    // On lavapipe, workgroups narrower than its 8 lanes gave a different image
+                    // (4x4 and 2x8: veach-door 2.6x too bright, 1.5 rays per sample instead
+                    // of 7), not diagnosed: the kernels use no workgroup memory, barrier or
+                    // subgroup operation, so a lavapipe fault is likely but unproven. X
+                    // starts at 8 until it is understood.
+                    Some((x, y)) if x >= 8 && y >= 1 && x.checked_mul(y).is_some_and(|n| n <= 256) => (x, y),
                     _ => {
                         return Err(GpuError::Invalid(format!(
                             "SKELIGHT_GPU_WORKGROUP={v}: expected XxY with X at least 8 and X·Y at most 256, e.g. 8x8"
@@ -106,6 +109,19 @@ impl LaunchShape {
         })
     }
 
+    /// Fewer slices where the film's sums would outgrow a storage buffer of `max_bytes`
+    /// (the adapter's limit): an image the device could render with one slice still renders.
+    pub(crate) fn fit(&mut self, pixels: u64, max_bytes: u64) -> Result<(), GpuError> {
+        let per_slice = pixels * 16;
+        if per_slice > max_bytes {
+            return Err(GpuError::Device(format!(
+                "{pixels} pixels need {per_slice} bytes of sums; the adapter's storage buffers hold {max_bytes}"
+            )));
+        }
+        self.slices = self.slices.min((max_bytes / per_slice).min(MAX_SLICES as u64) as u32).max(1);
+        Ok(())
+    }
+
     /// Refuses a shape the kernels cannot take (one set in code rather than the environment).
     pub(crate) fn check(&self) -> Result<(), GpuError> {
         let (x, y) = self.workgroup;
@@ -114,7 +130,7 @@ impl LaunchShape {
             && (1..=MAX_SLICES).contains(&self.slices)
             && x >= 8
             && y >= 1
-            && x * y <= 256
+            && x.checked_mul(y).is_some_and(|n| n <= 256)
             // A tile is a whole number of workgroups, or a tile's last threads would take
             // pixels of the next tile, which would then be rendered twice.
             && self.tile.is_multiple_of(x)
@@ -127,5 +143,27 @@ impl LaunchShape {
                  workgroup X at least 8, X·Y at most 256, the tile a multiple of X and Y"
             )))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Slices shrink to what the adapter's storage buffers hold (never below one), and an
+    /// image whose single slice does not fit is refused with an error, not a panic.
+    #[test]
+    fn slices_fit_the_adapters_buffers() {
+        let mut shape =
+            LaunchShape { tile: 512, samples_per_dispatch: 16, workgroup: (8, 8), slices: 16, fused: false };
+        shape.fit(1000, 16 * 1000 * 3).unwrap();
+        assert_eq!(shape.slices, 3);
+        shape.fit(1000, 1 << 40).unwrap();
+        assert_eq!(shape.slices, 3, "fitting never adds slices");
+        assert!(matches!(shape.fit(1000, 100), Err(GpuError::Device(_))));
+        assert!(
+            LaunchShape { workgroup: (65536, 65536), ..shape }.check().is_err(),
+            "an overflowing workgroup is refused"
+        );
     }
 }

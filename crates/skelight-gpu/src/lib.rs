@@ -229,6 +229,8 @@ impl GpuRenderer {
         let mut shape = LaunchShape::from_env(info.device_type, flat.params.width * flat.params.height)?;
         adjust(&mut shape);
         shape.check()?;
+        let max_bytes = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        shape.fit((flat.params.width * flat.params.height) as u64, max_bytes)?;
         let (wx, wy) = shape.workgroup;
         let source = source.concat().replace("@workgroup_size(8, 8)", &format!("@workgroup_size({wx}, {wy})"));
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
