@@ -231,6 +231,10 @@ fn camera_samples(px: u32, py: u32, z: u32, light: bool) {
     count_rays();
 }
 
+// Set by the pipeline: instant BPT in one kernel, the camera pass and the light pass of each
+// sample in turn (launch.rs's `fused`; measured slower, off by default).
+override FUSED: bool = false;
+
 @compute @workgroup_size(8, 8)
 fn camera_main(@builtin(global_invocation_id) id: vec3<u32>) {
     let px = P.x0 + id.x;
@@ -238,16 +242,5 @@ fn camera_main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (px >= P.width || py >= P.height) {
         return;
     }
-    camera_samples(px, py, id.z, false);
-}
-
-// Instant BPT in one kernel: the camera pass and the light pass of each sample in turn.
-@compute @workgroup_size(8, 8)
-fn fused_main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let px = P.x0 + id.x;
-    let py = P.y0 + id.y;
-    if (px >= P.width || py >= P.height) {
-        return;
-    }
-    camera_samples(px, py, id.z, true);
+    camera_samples(px, py, id.z, FUSED);
 }

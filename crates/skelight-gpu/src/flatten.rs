@@ -676,21 +676,23 @@ fn build_bvh(tris: &[Tri]) -> (Vec<Node>, Vec<u32>) {
             }
         };
         let empty = ([f32::MAX; 3], [f32::MIN; 3]);
+        let extent = [0, 1, 2].map(|k| chi[k] - clo[k]);
+        let usable = extent.map(|e| e > 0.0 && e.is_finite());
+        // One pass over the triangles bins each into the three axes' bins (its box and
+        // centroid computed once).
+        let mut counts = [[0usize; SAH_BINS]; 3];
+        let mut boxes = [[empty; SAH_BINS]; 3];
+        for &i in ids {
+            let (c, b) = (centroid(&tris[i as usize]), bounds(tris, &[i]));
+            for axis in (0..3).filter(|&a| usable[a]) {
+                let bin = (((c[axis] - clo[axis]) / extent[axis] * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
+                counts[axis][bin] += 1;
+                grow(&mut boxes[axis][bin], &b);
+            }
+        }
         let mut best: Option<(f32, usize, f32)> = None;
-        for axis in 0..3 {
-            let extent = chi[axis] - clo[axis];
-            if extent <= 0.0 || !extent.is_finite() {
-                continue;
-            }
-            let bin = |c: f32| (((c - clo[axis]) / extent * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
-            let mut counts = [0usize; SAH_BINS];
-            let mut boxes = [empty; SAH_BINS];
-            for &i in ids {
-                let t = &tris[i as usize];
-                let b = bin(centroid(t)[axis]);
-                counts[b] += 1;
-                grow(&mut boxes[b], &bounds(tris, &[i]));
-            }
+        for axis in (0..3).filter(|&a| usable[a]) {
+            let (counts, boxes, extent) = (&counts[axis], &boxes[axis], extent[axis]);
             // Right-to-left sweep: the cost of the right side of each plane.
             let mut right_cost = [0f32; SAH_BINS];
             let (mut acc, mut n) = (empty, 0usize);

@@ -267,19 +267,20 @@ impl GpuRenderer {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = |entry: &str| {
+        let pipeline = |entry: &str, constants: &[(&str, f64)]| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
                 layout: Some(&pipeline_layout),
                 module: &module,
                 entry_point: Some(entry),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
                 cache: None,
             })
         };
+        // The fused instant-BPT kernel is the camera pass with its `FUSED` constant set.
         let fused = shape.fused && estimator == Estimator::Ibpt;
-        let camera_pass = pipeline(if fused { "fused_main" } else { "camera_main" });
-        let light_pass = pipeline("light_main");
+        let camera_pass = pipeline("camera_main", &[("FUSED", if fused { 1.0 } else { 0.0 })]);
+        let light_pass = pipeline("light_main", &[]);
         let pixels = (flat.params.width * flat.params.height) as usize;
         // Light splats (rgb), and under the tent filter the camera samples' weighted sums (7).
         let splat_floats = if flat.params.filter_radius > 0.0 { 10 } else { 3 };
@@ -503,11 +504,6 @@ impl GpuRenderer {
         // Workgroups of 64 rays, laid out in two dimensions within the per-dimension limit.
         let groups = (rays.len() as u32).div_ceil(64).max(1);
         let (gx, gy) = (groups.min(65535), groups.div_ceil(65535));
-        let wait = |device: &wgpu::Device| {
-            device
-                .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
-                .map_err(|e| GpuError::Readback(e.to_string()))
-        };
         let mut best = std::time::Duration::MAX;
         for round in 0..=rounds {
             let mut encoder = self.device.create_command_encoder(&Default::default());
@@ -519,7 +515,7 @@ impl GpuRenderer {
             }
             let start = std::time::Instant::now();
             self.queue.submit([encoder.finish()]);
-            wait(&self.device)?;
+            self.wait()?;
             // Round 0 warms up (the driver's compilation, first touches of the buffers).
             if round > 0 {
                 best = best.min(start.elapsed());
@@ -530,7 +526,7 @@ impl GpuRenderer {
         self.queue.submit([encoder.finish()]);
         let slice = readback.slice(..);
         slice.map_async(wgpu::MapMode::Read, |_| {});
-        wait(&self.device)?;
+        self.wait()?;
         let data = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
         let hit_count = bytemuck::cast_slice::<u8, u32>(&data)[..rays.len()].iter().map(|&h| h as u64).sum();
         Ok((best, hit_count))
@@ -551,6 +547,14 @@ impl GpuRenderer {
         self.memory
     }
 
+    /// Waits until the device has done everything submitted.
+    fn wait(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+            .map(|_| ())
+            .map_err(|e| GpuError::Readback(e.to_string()))
+    }
+
     /// Adds the accumulators of a batch of `spp` samples per pixel to `film` in f64.
     fn read_into(&mut self, film: &mut Film, spp: u32) -> Result<(), GpuError> {
         let bytes = (self.pixels * 16 * self.shape.slices as usize) as u64;
@@ -566,9 +570,7 @@ impl GpuRenderer {
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
-        self.device
-            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        self.wait()?;
         rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
         {
             let data = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use super::SkeletonGuide;
 use crate::geometry::Ray;
 use crate::math::{Frame, Vec2, Vec3};
-use crate::sampling::{power_cosine, power_cosine_pdf, powi_by_squaring};
+use crate::sampling::{cos_power, power_cosine, power_cosine_norm, power_cosine_pdf};
 use crate::scene::Scene;
 
 /// Targets whose c'_i is below this share of the node's largest are dropped (and the rest
@@ -209,22 +209,13 @@ pub fn sample_lobe(strength: f32, axis: Vec3, u: Vec2) -> Vec3 {
 /// (unit, world space).
 #[inline]
 pub fn mixture_pdf(targets: &[Target], strength: f32, x: Vec3, normal: Vec3, wo: Vec3) -> f32 {
-    if strength == strength.trunc() && (1.0..=1024.0).contains(&strength) {
-        // Whole strengths (the default and every adaptive candidate): the lobes' common
-        // factor (s+1)/2π taken out and no branch per target, so the loop stays tight (this
-        // sum is most of skelpt's cost per vertex).
-        let n = strength as u32;
-        let sum: f32 = targets
-            .iter()
-            .map(|t| t.probability * powi_by_squaring(axis(x, t.point, normal).dot(wo).max(0.0), n))
-            .sum();
-        return (strength + 1.0) / (2.0 * std::f32::consts::PI) * sum;
-    }
-    targets.iter().map(|t| t.probability * lobe_pdf(strength, axis(x, t.point, normal).dot(wo))).sum()
+    mixture_pdfs(targets, &[strength], x, normal, wo)[0]
 }
 
 /// [`mixture_pdf`] for several strengths at once (the adaptive mode's candidates): each
-/// target's axis and cosine once, then its lobe per strength.
+/// target's axis and cosine once, then cos^s per strength; the lobes' normalisation
+/// (s+1)/2π once per strength, outside the loop over targets (this sum is most of skelpt's
+/// cost per vertex).
 #[inline]
 pub fn mixture_pdfs<const N: usize>(
     targets: &[Target],
@@ -233,17 +224,20 @@ pub fn mixture_pdfs<const N: usize>(
     normal: Vec3,
     wo: Vec3,
 ) -> [f32; N] {
-    let mut pdfs = [0.0; N];
+    let mut sums = [0.0; N];
     for t in targets {
         let cos = axis(x, t.point, normal).dot(wo);
         if cos <= 0.0 {
             continue;
         }
-        for (pdf, &s) in pdfs.iter_mut().zip(strengths) {
-            *pdf += t.probability * lobe_pdf(s, cos);
+        for (sum, &s) in sums.iter_mut().zip(strengths) {
+            *sum += t.probability * cos_power(cos, s);
         }
     }
-    pdfs
+    for (sum, &s) in sums.iter_mut().zip(strengths) {
+        *sum *= power_cosine_norm(s);
+    }
+    sums
 }
 
 /// Draws a direction from eq. 167's mixture: a target by its probability (`u_pick`), then
@@ -259,8 +253,9 @@ mod tests {
     use super::*;
     use crate::math::vec3;
 
-    /// The adaptive mode's candidates evaluated at once equal the mixture per strength, and
-    /// cos^n by squaring equals powf (checked by dropping a target from `mixture_pdfs`: fails).
+    /// The adaptive mode's candidates evaluated at once equal eq. 167 summed term by term,
+    /// and cos^n by squaring equals powf (checked by dropping a target from `mixture_pdfs`:
+    /// fails).
     #[test]
     fn mixture_pdfs_equal_the_mixture_per_strength() {
         let targets = [
@@ -274,7 +269,10 @@ mod tests {
             let wo = wo.normalize();
             let all = mixture_pdfs(&targets, &strengths, x, normal, wo);
             for (k, &s) in strengths.iter().enumerate() {
-                let one = mixture_pdf(&targets, s, x, normal, wo);
+                // Eq. 167 term by term: each target's lobe (eq. 163) around its own axis.
+                let one: f32 =
+                    targets.iter().map(|t| t.probability * lobe_pdf(s, (t.point - x).normalize().dot(wo))).sum();
+                assert_eq!(mixture_pdf(&targets, s, x, normal, wo), all[k], "one strength alone, or all at once");
                 assert!((all[k] - one).abs() <= 1e-6 * one.max(1.0), "strength {s}: {} against {one}", all[k]);
             }
         }
