@@ -198,3 +198,74 @@ fn scene_integrator_properties_set_skelpt_parameters() {
     let (pt, warnings) = create_for_scene("pt", &scene.settings, &[]).unwrap();
     assert_eq!((pt.name(), warnings.len()), ("pt", 0));
 }
+
+/// Eq. 176 carried past the first hit (`importance_bounces`), in the two rooms made grey.
+/// The walks share their first rays, so every node keeps at least its first-hit power, and
+/// (cosine sampling draws the same second rays whatever the reflectance) the power credited
+/// at second hits is exactly proportional to the reflectance: 0.5 gives twice what 0.25
+/// gives, about half the first-hit power (less the points no node maps). Not applying the
+/// BSDF's weight, or crediting the light's power at every hit, breaks the proportion;
+/// crediting a hit twice breaks the share.
+#[test]
+fn importance_from_later_bounces_carries_the_reflected_power() {
+    use skelight::color::Rgb;
+    use skelight::guided::importance::incident_power;
+    use skelight::guided::{guide_for, GuideSettings};
+    use skelight::material::{Bsdf, Diffuse};
+    use skelight::texture::Texture;
+    let grey = |reflectance: f32| {
+        let mut description = skelight::scene::builtin::two_rooms_description();
+        for m in &mut description.materials {
+            if m.name != "lamp" {
+                m.bsdf = Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(Rgb::splat(reflectance)) });
+            }
+        }
+        skelight::scene::Scene::build(description).expect("builds")
+    };
+    let rays = 100_000;
+    let reflected = |reflectance: f32| {
+        let scene = grey(reflectance);
+        let (guide, _) = guide_for(&scene, &GuideSettings { resolution: 64 }).expect("analysis");
+        let first = incident_power(&scene, &guide, rays, 1, 7);
+        let two = incident_power(&scene, &guide, rays, 2, 7);
+        for (node, (a, b)) in first.iter().zip(&two).enumerate() {
+            assert!(b >= a, "node {node}: {b} with two bounces, {a} with one");
+        }
+        let second: Vec<f64> = two.iter().zip(&first).map(|(b, a)| b - a).collect();
+        (first, second)
+    };
+    let (first, half) = reflected(0.5);
+    let (_, quarter) = reflected(0.25);
+    for (node, (h, q)) in half.iter().zip(&quarter).enumerate() {
+        assert!((h - 2.0 * q).abs() <= 1e-6 * h.max(1e-30), "node {node}: {h} at 0.5, {q} at 0.25");
+    }
+    let share = half.iter().sum::<f64>() / first.iter().sum::<f64>();
+    println!("second-hit power / first-hit power at reflectance 0.5: {share:.4}");
+    assert!((0.45..=0.55).contains(&share), "reflected share {share}, expected about 0.5");
+}
+
+/// Importance nodes reached along the same visible run of the skeleton give the same
+/// importance point: each node's targets hold each point once (their weights summed,
+/// the same mixture at half the cost on Sponza), with probabilities that sum to 1.
+#[test]
+fn each_importance_point_is_one_target() {
+    let mut scene = skelight::scene::builtin::two_rooms();
+    scene.set_resolution(16, 16);
+    let params = Params::new("skelpt", skelpt::PARAMS, &[]).unwrap();
+    let mut skelpt = SkeletonPathTracer::from_params(&params);
+    skelpt.prepare(&scene).expect("prepare");
+    let (guide, directions) = skelpt.guide().expect("guided");
+    let mut several = 0;
+    for node in 0..guide.graph.nodes.len() as u32 {
+        let targets = directions.at(node);
+        for (i, a) in targets.iter().enumerate() {
+            assert!(targets[i + 1..].iter().all(|b| b.point != a.point), "node {node}: point {:?} twice", a.point);
+        }
+        if !targets.is_empty() {
+            let total: f32 = targets.iter().map(|t| t.probability).sum();
+            assert!((total - 1.0).abs() < 1e-5, "node {node}: probabilities sum to {total}");
+        }
+        several += (targets.len() > 1) as usize;
+    }
+    assert!(several > 0, "no node has several targets");
+}

@@ -67,7 +67,13 @@ impl Directions {
         let mut lists: Vec<Vec<(Vec3, f64)>> = vec![Vec::new(); n];
         for entries in per_target {
             for (k, point, weight) in entries {
-                lists[k as usize].push((point, weight));
+                let list = &mut lists[k as usize];
+                // Importance nodes whose paths share the visible run give the same point:
+                // one lobe with their summed weight is the same mixture, evaluated once.
+                match list.iter_mut().find(|e| e.0 == point) {
+                    Some(e) => e.1 += weight,
+                    None => list.push((point, weight)),
+                }
             }
         }
         let mut offsets = Vec::with_capacity(n + 1);

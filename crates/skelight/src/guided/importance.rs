@@ -3,11 +3,18 @@
 //! lights and crediting each ray's power to the node of its first hit (eq. 176). Every light
 //! type starts rays the way light tracing starts them (area, point, spot, directional,
 //! environment, sun-sky), so every type is handled by the same estimate.
+//!
+//! Beyond the thesis, the light paths may go on for more bounces (BSDF sampling, as light
+//! tracing walks them), each hit crediting the power that reaches it: the importance of
+//! light that arrives only after reflections, such as a room lit through a door ajar
+//! (`why-not-2x.md`, H3). One bounce is eq. 176.
 
 use rayon::prelude::*;
 
 use super::SkeletonGuide;
-use crate::integrator::subpath::start_light_subpath;
+use crate::integrator::subpath::{random_walk, start_light_subpath, VertexSink};
+use crate::integrator::vertex::{Vertex, VertexKind};
+use crate::material::TransportMode;
 use crate::sampling::Rng;
 use crate::scene::Scene;
 
@@ -16,13 +23,14 @@ use crate::scene::Scene;
 const CHUNK: usize = 4096;
 
 /// Eq. 176 for every node of `guide` from `rays` rays of random stream `seed`: the mean
-/// power (luminance) of the rays whose first hit maps to each node.
-pub fn incident_power(scene: &Scene, guide: &SkeletonGuide, rays: usize, seed: u64) -> Vec<f64> {
+/// power (luminance) of the rays whose first hit maps to each node, and with `bounces` > 1
+/// the power reaching each later hit of the light path, up to `bounces` hits.
+pub fn incident_power(scene: &Scene, guide: &SkeletonGuide, rays: usize, bounces: u32, seed: u64) -> Vec<f64> {
     let nodes = guide.graph.nodes.len();
     let partial: Vec<Vec<f64>> = (0..rays.div_ceil(CHUNK))
         .into_par_iter()
         .map(|chunk| {
-            let mut sums = vec![0.0f64; nodes];
+            let mut credit = Credit { guide, sums: vec![0.0f64; nodes], last: Vec::with_capacity(2), depth: 0 };
             for i in chunk * CHUNK..((chunk + 1) * CHUNK).min(rays) {
                 // A stream of its own, apart from every pixel's (pixel indices are < 2^28).
                 let mut rng = Rng::new(seed, u64::MAX, i as u64);
@@ -31,12 +39,14 @@ pub fn incident_power(scene: &Scene, guide: &SkeletonGuide, rays: usize, seed: u
                 if !(power.is_finite() && power > 0.0) {
                     continue;
                 }
-                let Some(hit) = scene.intersect(&start.ray) else { continue };
-                if let Some(n) = guide.node_at(hit.p, hit.ng, -start.ray.d) {
-                    sums[n as usize] += power;
-                }
+                credit.last.clear();
+                credit.last.push(start.vertex);
+                credit.depth = 1;
+                let limit = bounces as usize + 1;
+                let mode = TransportMode::Importance;
+                random_walk(scene, start.ray, start.beta, start.pdf_dir, &mut rng, limit, mode, &mut credit);
             }
-            sums
+            credit.sums
         })
         .collect();
     let mut total = vec![0.0f64; nodes];
@@ -48,6 +58,44 @@ pub fn incident_power(scene: &Scene, guide: &SkeletonGuide, rays: usize, seed: u
     let n = rays.max(1) as f64;
     total.iter_mut().for_each(|t| *t /= n);
     total
+}
+
+/// A light path's walk crediting the power that reaches each surface hit to the hit's
+/// node; it keeps only the two last vertices, which the walk reads.
+struct Credit<'a> {
+    guide: &'a SkeletonGuide,
+    sums: Vec<f64>,
+    last: Vec<Vertex>,
+    /// Vertices of the path so far, the light's included.
+    depth: usize,
+}
+
+impl VertexSink for Credit<'_> {
+    fn push(&mut self, v: Vertex) {
+        if v.kind == VertexKind::Surface {
+            let power = v.beta.luminance() as f64;
+            if power.is_finite() && power > 0.0 {
+                if let Some(n) = self.guide.node_at(v.si.p, v.si.ng, v.si.wi) {
+                    self.sums[n as usize] += power;
+                }
+            }
+        }
+        if self.last.len() == 2 {
+            self.last.remove(0);
+        }
+        self.last.push(v);
+        self.depth += 1;
+    }
+    fn count(&self) -> usize {
+        self.depth
+    }
+    fn back(&self, i: usize) -> &Vertex {
+        &self.last[self.last.len() - 1 - i]
+    }
+    fn back_mut(&mut self, i: usize) -> &mut Vertex {
+        let n = self.last.len();
+        &mut self.last[n - 1 - i]
+    }
 }
 
 /// The importance nodes: every node with a positive value, the `most` largest if there are

@@ -50,6 +50,13 @@ pub const PARAMS: &[ParamSpec] = &[
         doc: "light rays traced once before rendering to estimate the nodes' importance (eq. 176)",
     },
     ParamSpec {
+        name: "importance_bounces",
+        kind: ParamKind::Int { min: 1, max: 16 },
+        default: "1",
+        doc: "hits of each light path credited to their nodes: 1 is eq. 176 (first hits); more follow the light \
+              by BSDF sampling into rooms it reaches only after reflections",
+    },
+    ParamSpec {
         name: "importance_nodes",
         kind: ParamKind::Int { min: 1, max: 4096 },
         default: "64",
@@ -111,6 +118,7 @@ pub struct SkeletonPathTracer {
     pub c_skel: f32,
     pub resolution: usize,
     pub importance_rays: usize,
+    pub importance_bounces: u32,
     pub importance_nodes: usize,
     pub adaptive: bool,
     /// Made by [`Integrator::prepare`].
@@ -136,6 +144,7 @@ impl SkeletonPathTracer {
             c_skel: p.float("c_skel") as f32,
             resolution: p.int("resolution") as usize,
             importance_rays: p.int("importance_rays") as usize,
+            importance_bounces: p.int("importance_bounces") as u32,
             importance_nodes: p.int("importance_nodes") as usize,
             adaptive: p.bool("adaptive"),
             prepared: None,
@@ -231,8 +240,14 @@ impl Integrator for SkeletonPathTracer {
 
     fn describe(&self) -> String {
         format!(
-            "skelpt strength={} c_skel={} resolution={} importance_rays={} importance_nodes={} adaptive={}",
-            self.strength, self.c_skel, self.resolution, self.importance_rays, self.importance_nodes, self.adaptive
+            "skelpt strength={} c_skel={} resolution={} importance_rays={} importance_bounces={} importance_nodes={} adaptive={}",
+            self.strength,
+            self.c_skel,
+            self.resolution,
+            self.importance_rays,
+            self.importance_bounces,
+            self.importance_nodes,
+            self.adaptive
         )
     }
 
@@ -249,7 +264,7 @@ impl Integrator for SkeletonPathTracer {
         }
         let guide = prepare_guide(scene, &GuideSettings { resolution: self.resolution }, &mut prep)?;
         let lap = std::time::Instant::now();
-        let values = incident_power(scene, &guide, self.importance_rays, IMPORTANCE_SEED);
+        let values = incident_power(scene, &guide, self.importance_rays, self.importance_bounces, IMPORTANCE_SEED);
         let importance = importance_nodes(&values, self.importance_nodes);
         prep.stages.push(("importance from light rays (eq. 176)".into(), lap.elapsed().as_secs_f64()));
         let lap = std::time::Instant::now();

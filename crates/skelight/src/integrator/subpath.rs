@@ -208,7 +208,8 @@ pub struct LightStart {
     /// Its throughput: emitted radiance × |cos| over the joint density of light, origin
     /// and direction (the power it carries, eq. 176's Le/p).
     pub beta: Rgb,
-    pdf_dir: f32,
+    /// The density of its direction, as [`random_walk`] takes it.
+    pub pdf_dir: f32,
 }
 
 /// Chooses a light by power and samples a point and direction on it.
