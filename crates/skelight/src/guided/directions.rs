@@ -5,7 +5,8 @@
 //! needs (a sum over every importance node of every light, not only the chosen one's).
 
 use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::hash_map::Entry;
+use std::collections::{BinaryHeap, HashMap};
 
 use rayon::prelude::*;
 
@@ -67,19 +68,14 @@ impl Directions {
         let mut lists: Vec<Vec<(Vec3, f64)>> = vec![Vec::new(); n];
         for entries in per_target {
             for (k, point, weight) in entries {
-                let list = &mut lists[k as usize];
-                // Importance nodes whose paths share the visible run give the same point:
-                // one lobe with their summed weight is the same mixture, evaluated once.
-                match list.iter_mut().find(|e| e.0 == point) {
-                    Some(e) => e.1 += weight,
-                    None => list.push((point, weight)),
-                }
+                lists[k as usize].push((point, weight));
             }
         }
         let mut offsets = Vec::with_capacity(n + 1);
         let mut targets = Vec::new();
         offsets.push(0);
         for list in lists {
+            let list = merge_identical_points(list);
             // Targets far below the node's largest are dropped; the rest renormalised.
             let largest = list.iter().map(|e| e.1).fold(0.0f64, f64::max);
             if largest > 0.0 && largest.is_finite() {
@@ -122,6 +118,25 @@ impl Directions {
     pub fn is_empty(&self) -> bool {
         self.targets.is_empty()
     }
+}
+
+/// Importance nodes whose shortest paths share the run of nodes a node sees give that node
+/// the same importance point (eq. 162), bit for bit: one lobe with their summed weight is the
+/// same mixture (eq. 167), evaluated once (Sponza: 3384 targets → 1723). First occurrences
+/// keep their order.
+fn merge_identical_points(list: Vec<(Vec3, f64)>) -> Vec<(Vec3, f64)> {
+    let mut index: HashMap<[u32; 3], usize> = HashMap::with_capacity(list.len());
+    let mut merged: Vec<(Vec3, f64)> = Vec::with_capacity(list.len());
+    for (point, weight) in list {
+        match index.entry([point.x.to_bits(), point.y.to_bits(), point.z.to_bits()]) {
+            Entry::Occupied(e) => merged[*e.get()].1 += weight,
+            Entry::Vacant(e) => {
+                e.insert(merged.len());
+                merged.push((point, weight));
+            }
+        }
+    }
+    merged
 }
 
 /// Dijkstra from `source` over the skeleton graph: each node's distance to it and the next
@@ -258,6 +273,30 @@ pub fn sample_mixture(targets: &[Target], strength: f32, x: Vec3, normal: Vec3, 
 mod tests {
     use super::*;
     use crate::math::vec3;
+
+    /// Merging the targets that share a point keeps eq. 167's mixture: at any x and ω, the
+    /// normalised sum over the merged list equals the one over the list with repeats
+    /// (dropping a repeat's weight instead of adding it: fails).
+    #[test]
+    fn merging_identical_points_keeps_the_mixture() {
+        let (a, b, c) = (vec3(1.0, 2.0, 0.5), vec3(-1.0, 1.0, 0.0), vec3(0.2, 3.0, -0.4));
+        let list = vec![(a, 0.2), (b, 0.3), (a, 0.1), (c, 0.4), (b, 0.05), (a, 0.7)];
+        let merged = merge_identical_points(list.clone());
+        assert_eq!(merged.iter().map(|e| e.0).collect::<Vec<_>>(), vec![a, b, c]);
+        let mixture = |l: &[(Vec3, f64)], x: Vec3, wo: Vec3| {
+            let total: f64 = l.iter().map(|e| e.1).sum();
+            l.iter().map(|&(p, w)| w / total * lobe_pdf(8.0, (p - x).normalize().dot(wo)) as f64).sum::<f64>()
+        };
+        for (x, wo) in [
+            (vec3(0.0, 0.0, 0.0), vec3(0.3, 0.9, 0.1)),
+            (vec3(0.5, -0.2, 0.1), vec3(-0.6, 0.7, 0.2)),
+            (vec3(0.1, 0.4, -0.3), vec3(0.1, 0.95, -0.2)),
+        ] {
+            let wo = wo.normalize();
+            let (repeats, once) = (mixture(&list, x, wo), mixture(&merged, x, wo));
+            assert!((repeats - once).abs() <= 1e-12 * repeats.max(1e-30), "{once} against {repeats}");
+        }
+    }
 
     /// The adaptive mode's candidates evaluated at once equal eq. 167 summed term by term,
     /// and cos^n by squaring equals powf (checked by dropping a target from `mixture_pdfs`:
