@@ -91,17 +91,46 @@ fn cosine_power_lobe_samples_its_density() {
     }
 }
 
+/// The default scene at `size`² pixels and skelpt (default parameters) prepared for it.
+fn prepared_two_rooms(size: usize) -> (skelight::scene::Scene, SkeletonPathTracer) {
+    let mut scene = skelight::scene::builtin::two_rooms();
+    scene.set_resolution(size, size);
+    let params = Params::new("skelpt", skelpt::PARAMS, &[]).unwrap();
+    let mut skelpt = SkeletonPathTracer::from_params(&params);
+    let prep = skelpt.prepare(&scene).expect("prepare");
+    println!("{}", prep.notes.join("\n"));
+    (scene, skelpt)
+}
+
+/// Eq. 176 written out: per node, the mean power of the light rays whose first hit maps to
+/// it, and the mean power of all the rays (mapped or not), from `importance`'s streams.
+fn first_hit_power(
+    scene: &skelight::scene::Scene,
+    guide: &skelight::guided::SkeletonGuide,
+    rays: usize,
+    seed: u64,
+) -> (Vec<f64>, f64) {
+    use skelight::integrator::subpath::start_light_subpath;
+    let (mut sums, mut all) = (vec![0.0f64; guide.graph.nodes.len()], 0.0);
+    for i in 0..rays {
+        let mut rng = Rng::new(seed, u64::MAX, i as u64);
+        let Some(start) = start_light_subpath(scene, &mut rng, -1) else { continue };
+        let power = start.beta.luminance() as f64 / rays as f64;
+        all += power;
+        let Some(hit) = scene.intersect(&start.ray) else { continue };
+        if let Some(n) = guide.node_at(hit.p, hit.ng, -start.ray.d) {
+            sums[n as usize] += power;
+        }
+    }
+    (sums, all)
+}
+
 /// At vertices the camera sees in the two rooms of the default scene (every node lit, so
 /// each has importance points in several directions), directions drawn from eq. 167's
 /// mixture follow the density the estimator evaluates for MIS.
 #[test]
 fn skeleton_mixture_samples_its_density_at_real_vertices() {
-    let mut scene = skelight::scene::builtin::two_rooms();
-    scene.set_resolution(32, 32);
-    let params = Params::new("skelpt", skelpt::PARAMS, &[]).unwrap();
-    let mut skelpt = SkeletonPathTracer::from_params(&params);
-    let prep = skelpt.prepare(&scene).expect("prepare");
-    println!("{}", prep.notes.join("\n"));
+    let (scene, skelpt) = prepared_two_rooms(32);
     let (guide, directions) = skelpt.guide().expect("the corridor's skeleton guides skelpt");
     let strength = 8.0;
     // The camera's first hits whose targets point in the most different directions (where
@@ -206,7 +235,8 @@ fn scene_integrator_properties_set_skelpt_parameters() {
 /// gives, and half the first-hit power up to the difference between the shares of first and
 /// second hits that map to a node (measured 0.5000; the band allows them 10 %). Not applying the
 /// BSDF's weight, or crediting the light's power at every hit, breaks the proportion;
-/// crediting a hit twice breaks the share.
+/// crediting later hits differently breaks the share; crediting every hit twice credits
+/// more power than the rays carry.
 #[test]
 fn importance_from_later_bounces_carries_the_reflected_power() {
     use skelight::color::Rgb;
@@ -233,6 +263,12 @@ fn importance_from_later_bounces_carries_the_reflected_power() {
             assert!(b >= a, "node {node}: {b} with two bounces, {a} with one");
         }
         let second: Vec<f64> = two.iter().zip(&first).map(|(b, a)| b - a).collect();
+        // No hit is credited more than reaches it: the first hits at most the rays' power,
+        // the second at most the reflectance times it (every first hit reflects that share).
+        let (_, all) = first_hit_power(&scene, &guide, rays, 7);
+        let (sum1, sum2) = (first.iter().sum::<f64>(), second.iter().sum::<f64>());
+        assert!(sum1 <= all * (1.0 + 1e-9), "first hits credited {sum1} of {all}");
+        assert!(sum2 <= reflectance as f64 * all * (1.0 + 1e-9), "second hits credited {sum2} of {all}");
         (first, second)
     };
     let (first, half) = reflected(0.5);
@@ -251,20 +287,10 @@ fn importance_from_later_bounces_carries_the_reflected_power() {
 fn one_bounce_is_the_first_hit_estimate() {
     use skelight::guided::importance::incident_power;
     use skelight::guided::{guide_for, GuideSettings};
-    use skelight::integrator::subpath::start_light_subpath;
     let scene = skelight::scene::builtin::two_rooms();
     let (guide, _) = guide_for(&scene, &GuideSettings { resolution: 64 }).expect("analysis");
     let (rays, seed) = (20_000usize, 11);
-    let mut sums = vec![0.0f64; guide.graph.nodes.len()];
-    for i in 0..rays {
-        let mut rng = Rng::new(seed, u64::MAX, i as u64);
-        let Some(start) = start_light_subpath(&scene, &mut rng, -1) else { continue };
-        let power = start.beta.luminance() as f64;
-        let Some(hit) = scene.intersect(&start.ray) else { continue };
-        if let Some(n) = guide.node_at(hit.p, hit.ng, -start.ray.d) {
-            sums[n as usize] += power / rays as f64;
-        }
-    }
+    let (sums, _) = first_hit_power(&scene, &guide, rays, seed);
     let walked = incident_power(&scene, &guide, rays, 1, seed);
     for (node, (a, b)) in sums.iter().zip(&walked).enumerate() {
         assert!((a - b).abs() <= 1e-9 * a.max(1e-30), "node {node}: {b} walked, {a} by first hits");
@@ -277,11 +303,7 @@ fn one_bounce_is_the_first_hit_estimate() {
 /// the same mixture at half the cost on Sponza), with probabilities that sum to 1.
 #[test]
 fn each_importance_point_is_one_target() {
-    let mut scene = skelight::scene::builtin::two_rooms();
-    scene.set_resolution(16, 16);
-    let params = Params::new("skelpt", skelpt::PARAMS, &[]).unwrap();
-    let mut skelpt = SkeletonPathTracer::from_params(&params);
-    skelpt.prepare(&scene).expect("prepare");
+    let (_, skelpt) = prepared_two_rooms(16);
     let (guide, directions) = skelpt.guide().expect("guided");
     let mut several = 0;
     for node in 0..guide.graph.nodes.len() as u32 {

@@ -30,7 +30,7 @@ pub fn incident_power(scene: &Scene, guide: &SkeletonGuide, rays: usize, bounces
     let partial: Vec<Vec<f64>> = (0..rays.div_ceil(CHUNK))
         .into_par_iter()
         .map(|chunk| {
-            let mut credit = Credit { guide, sums: vec![0.0f64; nodes], last: Vec::with_capacity(2), depth: 0 };
+            let mut credit = Credit { guide, sums: vec![0.0f64; nodes], path: Vec::new() };
             for i in chunk * CHUNK..((chunk + 1) * CHUNK).min(rays) {
                 // A stream of its own, apart from every pixel's (pixel indices are < 2^28).
                 let mut rng = Rng::new(seed, u64::MAX, i as u64);
@@ -39,9 +39,8 @@ pub fn incident_power(scene: &Scene, guide: &SkeletonGuide, rays: usize, bounces
                 if !(power.is_finite() && power > 0.0) {
                     continue;
                 }
-                credit.last.clear();
-                credit.last.push(start.vertex);
-                credit.depth = 1;
+                credit.path.clear();
+                credit.path.push(start.vertex);
                 let limit = bounces as usize + 1;
                 let mode = TransportMode::Importance;
                 random_walk(scene, start.ray, start.beta, start.pdf_dir, &mut rng, limit, mode, &mut credit);
@@ -61,13 +60,11 @@ pub fn incident_power(scene: &Scene, guide: &SkeletonGuide, rays: usize, bounces
 }
 
 /// A light path's walk crediting the power that reaches each surface hit to the hit's
-/// node; it keeps only the two last vertices, which the walk reads.
+/// node (the path, at most `bounces` + 1 vertices, is kept for the walk to read).
 struct Credit<'a> {
     guide: &'a SkeletonGuide,
     sums: Vec<f64>,
-    last: Vec<Vertex>,
-    /// Vertices of the path so far, the light's included.
-    depth: usize,
+    path: Vec<Vertex>,
 }
 
 impl VertexSink for Credit<'_> {
@@ -80,21 +77,17 @@ impl VertexSink for Credit<'_> {
                 }
             }
         }
-        if self.last.len() == 2 {
-            self.last.remove(0);
-        }
-        self.last.push(v);
-        self.depth += 1;
+        self.path.push(v);
     }
     fn count(&self) -> usize {
-        self.depth
+        self.path.len()
     }
     fn back(&self, i: usize) -> &Vertex {
-        &self.last[self.last.len() - 1 - i]
+        &self.path[self.path.len() - 1 - i]
     }
     fn back_mut(&mut self, i: usize) -> &mut Vertex {
-        let n = self.last.len();
-        &mut self.last[n - 1 - i]
+        let n = self.path.len();
+        &mut self.path[n - 1 - i]
     }
 }
 
