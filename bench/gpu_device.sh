@@ -121,13 +121,22 @@ case "${1:-}" in
                 --resolution 64 36 2>&1 | tail -40 | tee -a "$report"
             exit 3
         fi
-        steps=" ${STEPS:-table check shape again} "
+        steps=" ${STEPS:-table traversal rays check again} "
         # 2. The table: GPU pt and ibpt per scene, default launch shape.
         [[ $steps == *" table "* ]] && for entry in "${SCENES[@]}"; do
             IFS=: read -r scene w h <<<"$entry"
             for estimator in pt ibpt; do
                 one "$scene $estimator $spp spp" 60 "$bin" bench render "$scene" --device gpu \
                     -i "$estimator" --spp "$spp" --resolution $((w / r)) $((h / r))
+            done
+        done
+        # 2b. The ordered traversal (bvh.rs: nearest child first, a stack, two boxes per node)
+        # against the table's stackless one, same scenes and shape.
+        [[ $steps == *" traversal "* ]] && for entry in "${SCENES[@]}"; do
+            IFS=: read -r scene w h <<<"$entry"
+            for estimator in pt ibpt; do
+                SKELIGHT_GPU_TRAVERSAL=ordered one "traversal ordered: $scene $estimator $spp spp" 60 "$bin" bench \
+                    render "$scene" --device gpu -i "$estimator" --spp "$spp" --resolution $((w / r)) $((h / r))
             done
         done
         # 3. Four renders for the CPU comparison here: pt and ibpt, seeds 1 and 2, 160×90.
@@ -172,7 +181,8 @@ case "${1:-}" in
         [[ $steps == *" slices "* ]] && SKELIGHT_GPU_SLICES=4 SKELIGHT_GPU_FUSED=1 one "check ibpt seed 1, slices 4, fused" \
             60 "$bin" render "$door" --device gpu -i ibpt --spp "$check" --resolution 160 90 --seed 1 -q \
             -o "$out/door_ibpt_1_fused.exr" && rm -f "$out/door_ibpt_1_fused.png"
-        # 6. Rays per second of the traversal alone (no shading): the CPU's incoherent rays.
+        # 6. Rays per second of the traversal alone (no shading), both traversals: the CPU's
+        # incoherent rays and primary rays, with the work per ray and the rays whose hits differ.
         [[ $steps == *" rays "* ]] && for entry in "${SCENES[@]}"; do
             IFS=: read -r scene _ _ <<<"$entry"
             one "rays: $scene" 60 "$bin" bench rays "$scene" --device gpu --rays $((4000000 / r / r)) --rounds 5

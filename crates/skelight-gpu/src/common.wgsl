@@ -1,7 +1,7 @@
 // What both passes share: the scene's buffers, random numbers, BVH traversal, sampling and
-// the diffuse BSDF. The kernels (camera_pass.wgsl, light_pass.wgsl) are appended to this file
-// into one module. The BVH is binary, flattened depth-first with a miss link per node,
-// traversed without a stack. Conventions follow the CPU: Mitsuba's max_depth counts
+// the diffuse BSDF. The kernels (camera_pass.wgsl, light_pass.wgsl) and one of the BVH
+// traversals (traverse_stackless.wgsl, traverse_ordered.wgsl: its `Node` and `traverse`) are
+// appended to this file into one module (bvh.rs). Conventions follow the CPU: Mitsuba's max_depth counts
 // segments, the side a BSDF or emitter is seen from follows the shading normal, area
 // densities the geometric one.
 
@@ -37,17 +37,6 @@ struct Params {
     slices: u32,           // the dispatch's depth: thread z takes samples z, z + slices, …
     pad3: u32,
     pad4: u32,
-}
-
-struct Node {
-    lo: vec3<f32>,
-    first: u32,            // leaf: first triangle; inner: 0
-    hi: vec3<f32>,
-    count: u32,            // leaf: triangle count; inner: 0
-    miss: u32,             // next node when this one is missed or done (0xffffffff: end)
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 struct Tri {
@@ -166,14 +155,6 @@ struct Hit {
     b: vec2<f32>,          // barycentrics of v1 and v2
 }
 
-fn hit_box(lo: vec3<f32>, hi: vec3<f32>, o: vec3<f32>, inv_d: vec3<f32>, t_max: f32) -> bool {
-    let a = (lo - o) * inv_d;
-    let b = (hi - o) * inv_d;
-    let t0 = max(max(min(a.x, b.x), min(a.y, b.y)), max(min(a.z, b.z), 0.0));
-    let t1 = min(min(max(a.x, b.x), max(a.y, b.y)), min(max(a.z, b.z), t_max));
-    return t0 <= t1;
-}
-
 // The watertight test of Woop, Benthin and Wald (2013), as the CPU's geometry/triangle.rs:
 // the vertices are sheared into the ray's frame, where a shared edge's edge function is
 // computed identically (up to sign) by both its triangles, so no ray slips between them
@@ -254,41 +235,23 @@ fn masked_out(tri: Tri, k: u32, b: vec2<f32>, o: vec3<f32>, d: vec3<f32>) -> boo
     return f32(h >> 8u) * (1.0 / 16777216.0) >= a;
 }
 
-// The BVH traversal: the closest hit in (t_min, t_max), or any hit when `first_hit`. Masked
-// triangles count as opaque here (so the mask's texture lookup stays out of this innermost
-// loop) except that one never ends an any-hit search early: `intersect` tests the mask on the
-// closest of them afterwards.
-fn traverse(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, first_hit: bool) -> Hit {
-    var best = Hit(t_max, NONE, vec2<f32>(0.0));
-    let inv_d = 1.0 / d;
-    let shear = ray_shear(d);
-    var i = 0u;
-    loop {
-        if (i == NONE) {
-            break;
-        }
-        let n = nodes[i];
-        if (!hit_box(n.lo, n.hi, o, inv_d, best.t)) {
-            i = n.miss;
-            continue;
-        }
-        if (n.count == 0u) {
-            i = i + 1u;
-            continue;
-        }
-        for (var k = n.first; k < n.first + n.count; k = k + 1u) {
-            let tri = tris[k];
-            let r = hit_tri(tri, o, shear);
-            if (r.x > t_min && r.x < best.t) {
-                best = Hit(r.x, k, r.yz);
-                if (first_hit && (tri.flags & MASKED) == 0u) {
-                    return best;
-                }
+// A leaf's triangles `first`..`first + count` against the ray: `best` becomes the closest hit
+// in (t_min, best.t). True when an any-hit search (`first_hit`) may stop: an unmasked
+// triangle was hit. Masked triangles count as opaque here (so the mask's texture lookup stays
+// out of the traversal's innermost loop) except that one never ends an any-hit search early:
+// `intersect` tests the mask on the closest of them afterwards.
+fn hit_leaf(first: u32, count: u32, o: vec3<f32>, shear: RayShear, t_min: f32, first_hit: bool, best: ptr<function, Hit>) -> bool {
+    for (var k = first; k < first + count; k = k + 1u) {
+        let tri = tris[k];
+        let r = hit_tri(tri, o, shear);
+        if (r.x > t_min && r.x < (*best).t) {
+            *best = Hit(r.x, k, r.yz);
+            if (first_hit && (tri.flags & MASKED) == 0u) {
+                return true;
             }
         }
-        i = n.miss;
     }
-    return best;
+    return false;
 }
 
 // At most this many masked surfaces let one ray through (a bound, so that no ray loops forever;
@@ -495,9 +458,10 @@ fn survival(beta: vec3<f32>) -> f32 {
 // `bench rays --device gpu`: one thread per ray, the traversal alone (no shading, no opacity
 // masks, as the CPU's `bench rays`), so that rays per second compare with the CPU's
 // accelerators and with published traversal kernels. Each ray is two vec4: origin and t_max,
-// direction and 1 for any hit (else closest).
+// direction and 1 for any hit (else closest). An any-hit search gives the distance of the
+// hit it stopped at, not the closest.
 @group(0) @binding(11) var<storage, read> bench_rays: array<vec4<f32>>;
-@group(0) @binding(12) var<storage, read_write> bench_hits: array<u32>;   // per ray: 1 if it hit
+@group(0) @binding(12) var<storage, read_write> bench_hits: array<f32>;   // per ray: the hit's distance, t_max if none
 
 @compute @workgroup_size(64)
 fn rays_main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) n: vec3<u32>) {
@@ -508,5 +472,5 @@ fn rays_main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgrou
     let a = bench_rays[2u * i];
     let b = bench_rays[2u * i + 1u];
     let hit = traverse(a.xyz, b.xyz, 0.0, a.w, b.w > 0.5);
-    bench_hits[i] = select(0u, 1u, hit.tri != NONE);
+    bench_hits[i] = hit.t;
 }

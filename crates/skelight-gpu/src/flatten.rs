@@ -1,5 +1,5 @@
 //! The CPU scene flattened into the storage buffers the kernels read: triangles, a binary BVH
-//! (depth-first, a miss link per node, for stackless traversal), materials, emitting
+//! (bvh.rs), materials, emitting
 //! triangles with their pick probabilities, and the camera. A scene outside the feature
 //! subset is refused with what is outside it: the GPU never renders a silently different
 //! image.
@@ -14,6 +14,7 @@ use skelight::math::{vec2, vec3, Vec3};
 use skelight::scene::Scene;
 use skelight::texture::Texture;
 
+use crate::bvh::{build_bvh, Node};
 use crate::tables::{constant_value, Tables};
 use crate::GpuError;
 
@@ -28,17 +29,6 @@ pub const ENVIRONMENT: u32 = u32::MAX - 2;
 
 /// Four-float attributes per triangle in [`Flat::attributes`].
 pub const ATTRIBUTES: usize = 6;
-
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable, Debug)]
-pub struct Node {
-    pub lo: [f32; 3],
-    pub first: u32,
-    pub hi: [f32; 3],
-    pub count: u32,
-    pub miss: u32,
-    pub pad: [u32; 3],
-}
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug)]
@@ -579,193 +569,4 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         ..Params::default()
     };
     Ok(Flat { nodes, tris, attributes, materials, emitters, data: tables.data, params })
-}
-
-/// Bins per axis of the surface-area heuristic's split search.
-const SAH_BINS: usize = 16;
-
-/// A binary BVH over `tris` (leaves of at most 4 triangles), each split the best of
-/// [`SAH_BINS`] planes per axis by the surface-area heuristic (binned, as Wald 2007), or the
-/// median along the longest axis where all centroids share one bin; flattened depth-first: a
-/// node's left child follows it, and `miss` is the node after its subtree. Returns the nodes
-/// and the triangle order. On an H200 the SAH tree traced incoherent rays 2.2–2.5× faster
-/// than median splits alone (the first version) and doubled pt and ibpt (docs/benchmarks.md).
-fn build_bvh(tris: &[Tri]) -> (Vec<Node>, Vec<u32>) {
-    let centroid = |t: &Tri| [0, 1, 2].map(|k| (t.v0[k] + t.v1[k] + t.v2[k]) / 3.0);
-    let mut order: Vec<u32> = (0..tris.len() as u32).collect();
-    let mut nodes = Vec::new();
-    fn bounds(tris: &[Tri], ids: &[u32]) -> ([f32; 3], [f32; 3]) {
-        let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
-        for &i in ids {
-            let t = &tris[i as usize];
-            for v in [t.v0, t.v1, t.v2] {
-                for k in 0..3 {
-                    lo[k] = lo[k].min(v[k]);
-                    hi[k] = hi[k].max(v[k]);
-                }
-            }
-        }
-        (lo, hi)
-    }
-    fn build(tris: &[Tri], ids: &mut [u32], first: u32, nodes: &mut Vec<Node>, centroid: &dyn Fn(&Tri) -> [f32; 3]) {
-        let (lo, hi) = bounds(tris, ids);
-        let me = nodes.len();
-        nodes.push(Node { lo, hi, first: 0, count: 0, miss: NONE, pad: [0; 3] });
-        if ids.len() <= 4 {
-            nodes[me].first = first;
-            nodes[me].count = ids.len() as u32;
-            return;
-        }
-        let (mut clo, mut chi) = ([f32::MAX; 3], [f32::MIN; 3]);
-        for &i in ids.iter() {
-            let c = centroid(&tris[i as usize]);
-            for k in 0..3 {
-                clo[k] = clo[k].min(c[k]);
-                chi[k] = chi[k].max(c[k]);
-            }
-        }
-        // Partition in place by the SAH's plane (centroids below it first), unless rounding
-        // at the plane left one side empty.
-        let sah = sah_split(tris, ids, clo, chi, centroid).map(|(axis, plane)| {
-            let mut m = 0;
-            for k in 0..ids.len() {
-                if centroid(&tris[ids[k] as usize])[axis] < plane {
-                    ids.swap(k, m);
-                    m += 1;
-                }
-            }
-            m
-        });
-        let mid = match sah.filter(|&m| m > 0 && m < ids.len()) {
-            Some(m) => m,
-            None => {
-                let axis = (0..3).max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b]))).unwrap_or(0);
-                let mid = ids.len() / 2;
-                ids.select_nth_unstable_by(mid, |&a, &b| {
-                    centroid(&tris[a as usize])[axis].total_cmp(&centroid(&tris[b as usize])[axis])
-                });
-                mid
-            }
-        };
-        let (left, right) = ids.split_at_mut(mid);
-        build(tris, left, first, nodes, centroid);
-        // The left subtree's nodes that end it (its root and the last node of every right
-        // spine) continue with the right child; the right subtree's keep NONE until an
-        // ancestor links them (the whole tree's end stays NONE).
-        let right_start = nodes.len();
-        link(nodes, me + 1, right_start as u32);
-        build(tris, right, first + mid as u32, nodes, centroid);
-    }
-    /// The cheapest SAH plane (axis, position) over the bin boundaries of the centroids' box
-    /// `clo`–`chi`, leaving triangles on both sides; `None` where no plane does.
-    fn sah_split(
-        tris: &[Tri],
-        ids: &[u32],
-        clo: [f32; 3],
-        chi: [f32; 3],
-        centroid: &dyn Fn(&Tri) -> [f32; 3],
-    ) -> Option<(usize, f32)> {
-        let area = |lo: [f32; 3], hi: [f32; 3]| {
-            let e = [0, 1, 2].map(|k| (hi[k] - lo[k]).max(0.0));
-            e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
-        };
-        let grow = |b: &mut ([f32; 3], [f32; 3]), o: &([f32; 3], [f32; 3])| {
-            for k in 0..3 {
-                b.0[k] = b.0[k].min(o.0[k]);
-                b.1[k] = b.1[k].max(o.1[k]);
-            }
-        };
-        let empty = ([f32::MAX; 3], [f32::MIN; 3]);
-        let extent = [0, 1, 2].map(|k| chi[k] - clo[k]);
-        let usable = extent.map(|e| e > 0.0 && e.is_finite());
-        // One pass over the triangles bins each into the three axes' bins (its box and
-        // centroid computed once).
-        let mut counts = [[0usize; SAH_BINS]; 3];
-        let mut boxes = [[empty; SAH_BINS]; 3];
-        for &i in ids {
-            let (c, b) = (centroid(&tris[i as usize]), bounds(tris, &[i]));
-            for axis in (0..3).filter(|&a| usable[a]) {
-                let bin = (((c[axis] - clo[axis]) / extent[axis] * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
-                counts[axis][bin] += 1;
-                grow(&mut boxes[axis][bin], &b);
-            }
-        }
-        let mut best: Option<(f32, usize, f32)> = None;
-        for axis in (0..3).filter(|&a| usable[a]) {
-            let (counts, boxes, extent) = (&counts[axis], &boxes[axis], extent[axis]);
-            // Right-to-left sweep: the cost of the right side of each plane.
-            let mut right_cost = [0f32; SAH_BINS];
-            let (mut acc, mut n) = (empty, 0usize);
-            for b in (1..SAH_BINS).rev() {
-                grow(&mut acc, &boxes[b]);
-                n += counts[b];
-                right_cost[b] = if n > 0 { area(acc.0, acc.1) * n as f32 } else { 0.0 };
-            }
-            let (mut acc, mut n) = (empty, 0usize);
-            for b in 1..SAH_BINS {
-                grow(&mut acc, &boxes[b - 1]);
-                n += counts[b - 1];
-                if n == 0 || n == ids.len() {
-                    continue;
-                }
-                let cost = area(acc.0, acc.1) * n as f32 + right_cost[b];
-                if best.is_none_or(|(c, _, _)| cost < c) {
-                    best = Some((cost, axis, clo[axis] + extent * b as f32 / SAH_BINS as f32));
-                }
-            }
-        }
-        best.map(|(_, axis, plane)| (axis, plane))
-    }
-    /// Sets the miss link of the subtree rooted at `root` to `next`: the root's, and that
-    /// of every node whose miss pointed past the subtree (NONE while building).
-    fn link(nodes: &mut [Node], root: usize, next: u32) {
-        let end = nodes.len();
-        for n in &mut nodes[root..end] {
-            if n.miss == NONE {
-                n.miss = next;
-            }
-        }
-    }
-    build(tris, &mut order, 0, &mut nodes, &centroid);
-    (nodes, order)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Stackless traversal visits every leaf once, in depth-first order.
-    #[test]
-    fn miss_links_walk_every_leaf_once() {
-        let tris: Vec<Tri> = (0..37)
-            .map(|i| {
-                let x = (i * 7 % 13) as f32;
-                let y = (i * 5 % 11) as f32;
-                Tri {
-                    v0: [x, y, 0.0],
-                    v1: [x + 1.0, y, 0.0],
-                    v2: [x, y + 1.0, 0.0],
-                    material: 0,
-                    emitter: NONE,
-                    flags: 0,
-                }
-            })
-            .collect();
-        let (nodes, order) = build_bvh(&tris);
-        let mut seen = vec![0; tris.len()];
-        let mut i = 0u32;
-        while i != NONE {
-            let n = nodes[i as usize];
-            if n.count > 0 {
-                for k in n.first..n.first + n.count {
-                    seen[order[k as usize] as usize] += 1;
-                }
-                i = n.miss;
-            } else {
-                i += 1;
-            }
-        }
-        assert!(seen.iter().all(|&c| c == 1), "{seen:?}");
-        assert_eq!(nodes[0].miss, NONE);
-    }
 }

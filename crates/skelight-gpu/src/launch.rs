@@ -2,6 +2,7 @@
 //! pixel (slices), and whether instant BPT's two passes run as one kernel, each default
 //! chosen by measurement on an H200 (docs/benchmarks.md).
 
+use crate::bvh::Traversal;
 use crate::GpuError;
 
 /// Samples per pixel summed on the device (in f32) before the film takes them (in f64).
@@ -32,11 +33,16 @@ const MAX_SLICES: u32 = 16;
 /// the barrier between the passes but with the registers of both, it was 0.73-0.82× the two
 /// kernels at 512×288 (4 slices, SAH tree) on an H200 (0.93-0.96× with median splits).
 const FUSED: bool = false;
+/// The BVH traversal: stackless, the one measured on an H200 so far (docs/benchmarks.md);
+/// the ordered traversal fetches 2.0-2.4× fewer nodes per ray (counted on the CPU) and waits
+/// for a device to be timed against it.
+const TRAVERSAL: Traversal = Traversal::Stackless;
 
 /// The megakernels' launch shape. The defaults are the constants above; `bench/gpu_device.sh`
 /// sweeps them on a data-centre GPU through the environment (`SKELIGHT_GPU_TILE`,
 /// `SKELIGHT_GPU_SAMPLES_PER_DISPATCH`, `SKELIGHT_GPU_WORKGROUP` as `8x8`,
-/// `SKELIGHT_GPU_SLICES`, `SKELIGHT_GPU_FUSED` as 0 or 1), so the shape is chosen by
+/// `SKELIGHT_GPU_SLICES`, `SKELIGHT_GPU_FUSED` as 0 or 1, `SKELIGHT_GPU_TRAVERSAL` as
+/// `stackless` or `ordered`), so the shape is chosen by
 /// measurement rather than by guess. The image does not depend on it: every (pixel, sample)
 /// draws the same random numbers whatever thread or dispatch takes it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,6 +55,8 @@ pub struct LaunchShape {
     pub slices: u32,
     /// Instant BPT's camera and light passes in one kernel, without the barrier between them.
     pub fused: bool,
+    /// How the kernels traverse the BVH (and so which of its layouts the device holds).
+    pub traversal: Traversal,
 }
 
 impl LaunchShape {
@@ -100,12 +108,19 @@ impl LaunchShape {
             Some("1") => true,
             Some(v) => return Err(GpuError::Invalid(format!("SKELIGHT_GPU_FUSED={v}: expected 0 or 1"))),
         };
+        let traversal = match var("SKELIGHT_GPU_TRAVERSAL") {
+            None => TRAVERSAL,
+            Some(v) => Traversal::from_name(&v).ok_or_else(|| {
+                GpuError::Invalid(format!("SKELIGHT_GPU_TRAVERSAL={v}: expected stackless or ordered"))
+            })?,
+        };
         Ok(LaunchShape {
             tile,
             samples_per_dispatch,
             workgroup,
             slices: number("SKELIGHT_GPU_SLICES", slices, MAX_SLICES)?,
             fused,
+            traversal,
         })
     }
 
@@ -154,8 +169,14 @@ mod tests {
     /// image whose single slice does not fit is refused with an error, not a panic.
     #[test]
     fn slices_fit_the_adapters_buffers() {
-        let mut shape =
-            LaunchShape { tile: 512, samples_per_dispatch: 16, workgroup: (8, 8), slices: 16, fused: false };
+        let mut shape = LaunchShape {
+            tile: 512,
+            samples_per_dispatch: 16,
+            workgroup: (8, 8),
+            slices: 16,
+            fused: false,
+            traversal: Traversal::Stackless,
+        };
         shape.fit(1000, 16 * 1000 * 3).unwrap();
         assert_eq!(shape.slices, 3);
         shape.fit(1000, 1 << 40).unwrap();

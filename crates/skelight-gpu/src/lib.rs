@@ -9,6 +9,7 @@
 //! so GPU renders agree with the CPU's in expectation and merge with them. Not yet: the
 //! other BSDFs and lights (issue 35).
 
+pub mod bvh;
 pub mod flatten;
 mod launch;
 mod tables;
@@ -17,6 +18,7 @@ use skelight::film::Film;
 use skelight::scene::Scene;
 use wgpu::util::DeviceExt;
 
+pub use bvh::Traversal;
 use flatten::{Flat, Params};
 pub use launch::LaunchShape;
 use launch::READBACK_BATCH;
@@ -79,7 +81,7 @@ pub struct Memory {
     pub scene_bytes: u64,
     /// Sums, squares and splats per pixel.
     pub film_bytes_per_pixel: u64,
-    /// Device memory per path in flight.
+    /// Device memory per path in flight (at most: a traversal's stack may stay in registers).
     pub path_state_bytes: u64,
 }
 
@@ -215,8 +217,21 @@ impl GpuRenderer {
             .map_err(|e| GpuError::Device(e.to_string()))?;
         // Splats add with float atomics where the adapter has them, else by compare and swap.
         let splat = if float_atomics { include_str!("splat_f32.wgsl") } else { include_str!("splat_cas.wgsl") };
+        let mut shape = LaunchShape::from_env(info.device_type, flat.params.width * flat.params.height)?;
+        adjust(&mut shape);
+        shape.check()?;
+        // The traversal's kernel and the BVH layout it reads.
+        let (traversal_source, node_bytes): (&str, Vec<u8>) = match shape.traversal {
+            Traversal::Stackless => {
+                (include_str!("traverse_stackless.wgsl"), bytemuck::cast_slice(&flat.nodes).to_vec())
+            }
+            Traversal::Ordered => {
+                (include_str!("traverse_ordered.wgsl"), bytemuck::cast_slice(&bvh::pair_nodes(&flat.nodes)).to_vec())
+            }
+        };
         let source = [
             include_str!("common.wgsl"),
+            traversal_source,
             include_str!("texture.wgsl"),
             include_str!("environment.wgsl"),
             include_str!("light.wgsl"),
@@ -226,9 +241,6 @@ impl GpuRenderer {
             include_str!("camera_pass.wgsl"),
             include_str!("light_pass.wgsl"),
         ];
-        let mut shape = LaunchShape::from_env(info.device_type, flat.params.width * flat.params.height)?;
-        adjust(&mut shape);
-        shape.check()?;
         let max_bytes = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
         shape.fit((flat.params.width * flat.params.height) as u64, max_bytes)?;
         let (wx, wy) = shape.workgroup;
@@ -319,7 +331,7 @@ impl GpuRenderer {
             mapped_at_creation: false,
         });
         let scene_bytes = [
-            std::mem::size_of_val(flat.nodes.as_slice()),
+            node_bytes.len(),
             std::mem::size_of_val(flat.tris.as_slice()),
             std::mem::size_of_val(flat.materials.as_slice()),
             std::mem::size_of_val(flat.emitters.as_slice()),
@@ -328,7 +340,7 @@ impl GpuRenderer {
         ]
         .iter()
         .sum::<usize>() as u64;
-        let nodes = storage(&device, "nodes", bytemuck::cast_slice(&flat.nodes));
+        let nodes = storage(&device, "nodes", &node_bytes);
         let tris = storage(&device, "tris", bytemuck::cast_slice(&flat.tris));
         let materials = storage(&device, "materials", bytemuck::cast_slice(&flat.materials));
         let emitters = storage(&device, "emitters", bytemuck::cast_slice(&flat.emitters));
@@ -377,7 +389,12 @@ impl GpuRenderer {
             memory: Memory {
                 scene_bytes,
                 film_bytes_per_pixel: 32 * shape.slices as u64 + 4 * splat_floats as u64,
-                path_state_bytes: 0,
+                // The ordered traversal's stack: a node and an entry distance per level, which
+                // the shader compiler keeps in registers or spills to local memory.
+                path_state_bytes: match shape.traversal {
+                    Traversal::Stackless => 0,
+                    Traversal::Ordered => (bvh::MAX_DEPTH * 8) as u64,
+                },
             },
             splat_floats,
             pixels,
@@ -414,7 +431,7 @@ impl GpuRenderer {
             encoder.clear_buffer(&self.splats, 0, None);
             encoder.clear_buffer(&self.counters, 0, None);
             self.queue.submit([encoder.finish()]);
-            let LaunchShape { tile, samples_per_dispatch, workgroup: (wx, wy), slices, fused } = self.shape;
+            let LaunchShape { tile, samples_per_dispatch, workgroup: (wx, wy), slices, fused, .. } = self.shape;
             let light_pass = self.estimator != Estimator::Pt && !(fused && self.estimator == Estimator::Ibpt);
             for offset in (0..n).step_by(samples_per_dispatch as usize) {
                 let samples = samples_per_dispatch.min(n - offset);
@@ -449,8 +466,9 @@ impl GpuRenderer {
 
     /// `bench rays --device gpu`: traces `rays` (origin, t_max, direction, 1 for any hit else
     /// 0) with the BVH traversal alone, no shading, `rounds` times after a warm-up, and gives
-    /// the best time and how many rays hit.
-    pub fn trace(&self, rays: &[[f32; 8]], rounds: usize) -> Result<(std::time::Duration, u64), GpuError> {
+    /// the best time and each ray's hit distance (its t_max where it hit nothing; for an
+    /// any-hit ray, the hit it stopped at).
+    pub fn trace(&self, rays: &[[f32; 8]], rounds: usize) -> Result<(std::time::Duration, Vec<f32>), GpuError> {
         let entry = |i: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
             binding: i,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -528,8 +546,8 @@ impl GpuRenderer {
         slice.map_async(wgpu::MapMode::Read, |_| {});
         self.wait()?;
         let data = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
-        let hit_count = bytemuck::cast_slice::<u8, u32>(&data)[..rays.len()].iter().map(|&h| h as u64).sum();
-        Ok((best, hit_count))
+        let distances = bytemuck::cast_slice::<u8, f32>(&data)[..rays.len()].to_vec();
+        Ok((best, distances))
     }
 
     /// How the kernels are launched (tile, samples per dispatch, workgroup, slices).

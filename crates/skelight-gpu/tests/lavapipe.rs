@@ -36,6 +36,17 @@ fn render(gpu: &mut GpuRenderer, scene: &Scene, spp: u32, seed: u64) -> Film {
     film
 }
 
+/// The largest relative difference between two images' pixel channels (absolute below 1e-3).
+fn worst_relative_difference(a: &Image, b: &Image) -> f32 {
+    let mut worst = 0f32;
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        for (u, v) in [(p.r, q.r), (p.g, q.g), (p.b, q.b)] {
+            worst = worst.max((u - v).abs() / (u.abs() + v.abs()).max(1e-3));
+        }
+    }
+    worst
+}
+
 /// The launch shape (tiles, samples per dispatch, slices, the fused instant-BPT kernel,
 /// workgroup) changes which thread takes a (pixel, sample), never its random numbers: the
 /// same seed gives the same image up to the order of float sums. (It found tiles narrower
@@ -54,29 +65,28 @@ fn the_launch_shape_does_not_change_the_samples() {
         let narrow = GpuRenderer::with_shape(&scene, estimator, Splats::Auto, |s| (s.tile, s.workgroup) = (8, (16, 2)));
         assert!(matches!(narrow, Err(GpuError::Invalid(_))), "a tile of 8 under workgroups of 16 is refused");
         let (a, b) = (render(&mut plain, &scene, 8, 5).image(), render(&mut shaped, &scene, 8, 5).image());
-        let mut worst = 0f32;
-        for (p, q) in a.pixels.iter().zip(&b.pixels) {
-            for (u, v) in [(p.r, q.r), (p.g, q.g), (p.b, q.b)] {
-                worst = worst.max((u - v).abs() / (u.abs() + v.abs()).max(1e-3));
-            }
-        }
+        let worst = worst_relative_difference(&a, &b);
         println!("{}: worst relative difference {worst:.2e} between the launch shapes", estimator.name());
         assert!(worst < 1e-4, "{}: the launch shape changed the image (relative difference {worst})", estimator.name());
     }
 }
 
-/// `bench rays --device gpu` measures the kernels' traversal alone: it must find what the
+/// `bench rays --device gpu` measures the kernels' traversals alone: each must find what the
 /// CPU's BVH finds. Rays from points of veach-door's bounding box in uniform directions.
-/// Both triangle tests are watertight, so whether a ray hits does not depend on the tree:
-/// the counts are equal.
+/// Both triangle tests are watertight, so whether a ray hits does not depend on the tree: the
+/// counts are equal; the closest distances agree up to rounding, which scales with the
+/// coordinates (the scene's size) rather than with the distance (the GPU's edge test has no
+/// double-precision fallback, and a box's entry distance is rounded too).
 #[test]
-fn the_gpu_traversal_hits_what_the_cpu_bvh_hits() {
+fn the_gpu_traversals_hit_what_the_cpu_bvh_hits() {
     use skelight::geometry::{Accelerator, Bvh, NoFilter, Ray};
     use skelight::sampling::{uniform_sphere, Rng};
+    use skelight_gpu::Traversal;
     let scene = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 8, 8);
-    let Some(gpu) = open(&scene, Estimator::Pt).unwrap() else { return };
+    let Some(_) = open(&scene, Estimator::Pt).unwrap() else { return };
     let bvh = Bvh::build(&scene.build_triangles());
     let bounds = scene.bounds();
+    let extent = (bounds.max - bounds.min).length();
     let rays: Vec<Ray> = (0..20_000u64)
         .map(|i| {
             let mut rng = Rng::new(3, i, 0);
@@ -86,15 +96,47 @@ fn the_gpu_traversal_hits_what_the_cpu_bvh_hits() {
             Ray::new(o, uniform_sphere(rng.next_2d()))
         })
         .collect();
-    let cpu = rays.iter().filter(|r| bvh.intersect(r, &NoFilter).is_some()).count() as i64;
+    let cpu: Vec<Option<f32>> = rays.iter().map(|r| bvh.intersect(r, &NoFilter).map(|h| h.t)).collect();
     let packed = |any: f32| -> Vec<[f32; 8]> {
         rays.iter().map(|r| [r.o.x, r.o.y, r.o.z, 1e30, r.d.x, r.d.y, r.d.z, any]).collect()
     };
-    let (_, closest) = gpu.trace(&packed(0.0), 1).unwrap();
-    let (_, any) = gpu.trace(&packed(1.0), 1).unwrap();
-    println!("hits of 20 000 rays: CPU {cpu}, GPU closest {closest}, GPU any {any}");
-    assert_eq!(closest as i64, cpu, "GPU closest hits against the CPU's");
-    assert_eq!(closest, any, "closest and any hit disagree on which rays hit");
+    for traversal in [Traversal::Stackless, Traversal::Ordered] {
+        let gpu = GpuRenderer::with_shape(&scene, Estimator::Pt, Splats::Auto, |s| s.traversal = traversal).unwrap();
+        let (_, closest) = gpu.trace(&packed(0.0), 1).unwrap();
+        let (_, any) = gpu.trace(&packed(1.0), 1).unwrap();
+        let hit = |t: &f32| *t < 1e30;
+        let (mut hits, mut worst) = (0, 0f32);
+        for (c, g) in cpu.iter().zip(&closest) {
+            assert_eq!(c.is_some(), hit(g), "{traversal:?}: the GPU and the CPU disagree on whether a ray hits");
+            if let Some(c) = c {
+                hits += 1;
+                worst = worst.max((c - g).abs() / (c + extent));
+            }
+        }
+        println!("{traversal:?}: {hits} of 20 000 rays hit; closest distances within {worst:.1e} × (t + extent) of the CPU's");
+        assert!(worst < 1e-6, "{traversal:?}: closest hits up to {worst} from the CPU's");
+        assert!(closest.iter().zip(&any).all(|(c, a)| hit(c) == hit(a)), "{traversal:?}: closest and any hit disagree");
+        assert!(closest.iter().zip(&any).all(|(c, a)| a >= c), "{traversal:?}: an any hit before the closest one");
+    }
+}
+
+/// The ordered traversal renders what the stackless one renders: the same seed gives the same
+/// image up to rounding (the same closest hits, found in another order).
+#[test]
+fn the_traversal_does_not_change_the_image() {
+    let mut scene = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 24, 16);
+    scene.settings.max_depth = 4;
+    for estimator in [Estimator::Pt, Estimator::Ibpt] {
+        let Some(mut stackless) = open_with(&scene, estimator, Splats::Auto).unwrap() else { return };
+        let mut ordered = GpuRenderer::with_shape(&scene, estimator, Splats::Auto, |s| {
+            s.traversal = skelight_gpu::Traversal::Ordered
+        })
+        .unwrap();
+        let (a, b) = (render(&mut stackless, &scene, 8, 5).image(), render(&mut ordered, &scene, 8, 5).image());
+        let worst = worst_relative_difference(&a, &b);
+        println!("{}: worst relative difference {worst:.2e} between the traversals", estimator.name());
+        assert!(worst < 1e-4, "{}: the traversal changed the image (relative difference {worst})", estimator.name());
+    }
 }
 
 /// Samples per pixel (lavapipe is slow; the statistics take the noise into account).
