@@ -131,12 +131,16 @@ case "${1:-}" in
             done
         done
         # 2b. The ordered traversal (bvh.rs: nearest child first, a stack, two boxes per node)
-        # against the table's stackless one, same scenes and shape.
+        # and the hybrid (ordered closest hits, stackless shadow rays) against the table's
+        # stackless one, same scenes and shape.
         [[ $steps == *" traversal "* ]] && for entry in "${SCENES[@]}"; do
             IFS=: read -r scene w h <<<"$entry"
-            for estimator in pt ibpt; do
-                SKELIGHT_GPU_TRAVERSAL=ordered one "traversal ordered: $scene $estimator $spp spp" 60 "$bin" bench \
-                    render "$scene" --device gpu -i "$estimator" --spp "$spp" --resolution $((w / r)) $((h / r))
+            for traversal in hybrid ordered; do
+                for estimator in pt ibpt; do
+                    SKELIGHT_GPU_TRAVERSAL=$traversal one "traversal $traversal: $scene $estimator $spp spp" 60 \
+                        "$bin" bench render "$scene" --device gpu -i "$estimator" --spp "$spp" \
+                        --resolution $((w / r)) $((h / r))
+                done
             done
         done
         # 3. Four renders for the CPU comparison here: pt and ibpt, seeds 1 and 2, 160×90.

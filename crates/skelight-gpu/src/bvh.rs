@@ -1,6 +1,6 @@
 //! The GPU's BVH: a binary tree built by the surface-area heuristic, and its two layouts, one
 //! per traversal kernel (`SKELIGHT_GPU_TRAVERSAL`, launch.rs):
-//! - stackless (`traverse_stackless.wgsl`): one box per 64-byte [`Node`], depth-first with
+//! - stackless (`traverse_stackless.wgsl`): one box per 48-byte [`Node`], depth-first with
 //!   a miss link per node, children visited in a fixed order;
 //! - ordered (`traverse_ordered.wgsl`): one [`PairNode`] per inner node holding both
 //!   children's boxes (Aila and Laine 2009's layout), the nearer child first and the farther
@@ -61,18 +61,61 @@ pub const MAX_DEPTH: usize = 32;
 pub enum Traversal {
     Stackless,
     Ordered,
+    /// Closest hits ordered, any hits (shadow rays, which stop at the first hit and gain
+    /// nothing from the order) stackless; the device holds both layouts.
+    Hybrid,
 }
 
 impl Traversal {
+    pub const ALL: [Traversal; 3] = [Traversal::Stackless, Traversal::Ordered, Traversal::Hybrid];
+
     pub fn name(self) -> &'static str {
         match self {
             Traversal::Stackless => "stackless",
             Traversal::Ordered => "ordered",
+            Traversal::Hybrid => "hybrid",
         }
     }
 
     pub fn from_name(name: &str) -> Option<Traversal> {
-        [Traversal::Stackless, Traversal::Ordered].into_iter().find(|t| t.name() == name)
+        Traversal::ALL.into_iter().find(|t| t.name() == name)
+    }
+
+    /// The nodes the kernels read, as 16-byte words, and the word where the ordered layout's
+    /// begin among them (the kernels' PAIR_ROOT).
+    pub fn device_nodes(self, nodes: &[Node]) -> (Vec<[f32; 4]>, u32) {
+        let words = |b: &[u8]| bytemuck::cast_slice::<u8, [f32; 4]>(b).to_vec();
+        let stackless = || words(bytemuck::cast_slice(nodes));
+        let ordered = || words(bytemuck::cast_slice(&pair_nodes(nodes)));
+        match self {
+            Traversal::Stackless => (stackless(), 0),
+            Traversal::Ordered => (ordered(), 0),
+            Traversal::Hybrid => {
+                let mut all = stackless();
+                let root = all.len() as u32;
+                all.extend(ordered());
+                (all, root)
+            }
+        }
+    }
+
+    /// The WGSL `traverse` the kernels call.
+    pub fn dispatcher(self) -> &'static str {
+        match self {
+            Traversal::Stackless => {
+                "fn traverse(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, first_hit: bool) -> Hit {\n    \
+                 return traverse_stackless(o, d, t_min, t_max, first_hit);\n}\n"
+            }
+            Traversal::Ordered => {
+                "fn traverse(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, first_hit: bool) -> Hit {\n    \
+                 return traverse_ordered(o, d, t_min, t_max, first_hit);\n}\n"
+            }
+            Traversal::Hybrid => {
+                "fn traverse(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, first_hit: bool) -> Hit {\n    \
+                 if (first_hit) {\n        return traverse_stackless(o, d, t_min, t_max, true);\n    }\n    \
+                 return traverse_ordered(o, d, t_min, t_max, false);\n}\n"
+            }
+        }
     }
 }
 
@@ -278,7 +321,8 @@ pub fn pair_nodes(nodes: &[Node]) -> Vec<PairNode> {
         .collect()
 }
 
-/// What a ray cost a traversal: nodes fetched (64 bytes each), boxes and triangles tested.
+/// What a ray cost a traversal: nodes fetched (48 bytes each stackless, 64 ordered), boxes
+/// and triangles (48 bytes each) tested.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Work {
     pub fetches: u64,
@@ -335,6 +379,7 @@ pub fn reference_traverse(
         }
     };
     let limit = |best: &Option<(f32, u32)>| best.map_or(t_max, |b| b.0);
+    // The mirror follows closest-hit rays, which the hybrid traversal orders.
     match traversal {
         Traversal::Stackless => {
             let mut i = if stackless.is_empty() { NONE } else { 0 };
@@ -353,7 +398,7 @@ pub fn reference_traverse(
                 }
             }
         }
-        Traversal::Ordered => {
+        Traversal::Ordered | Traversal::Hybrid => {
             let mut stack: Vec<(u32, f32)> = Vec::with_capacity(MAX_DEPTH);
             let mut i = 0u32;
             loop {

@@ -1,7 +1,7 @@
 // What both passes share: the scene's buffers, random numbers, BVH traversal, sampling and
-// the diffuse BSDF. The kernels (camera_pass.wgsl, light_pass.wgsl) and one of the BVH
-// traversals (traverse_stackless.wgsl, traverse_ordered.wgsl: its `Node` and `traverse`) are
-// appended to this file into one module (bvh.rs). Conventions follow the CPU: Mitsuba's max_depth counts
+// the diffuse BSDF. The kernels (camera_pass.wgsl, light_pass.wgsl) and the BVH traversals
+// (traverse_stackless.wgsl, traverse_ordered.wgsl, and a `traverse` that picks one: lib.rs,
+// bvh.rs) are appended to this file into one module. Conventions follow the CPU: Mitsuba's max_depth counts
 // segments, the side a BSDF or emitter is seen from follows the shading normal, area
 // densities the geometric one.
 
@@ -95,7 +95,10 @@ struct Emitter {
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
-@group(0) @binding(1) var<storage, read> nodes: array<Node>;
+// The BVH's nodes in either layout or both (bvh.rs), as 16-byte words which the traversals
+// decode: a stackless node is 3 words, from 0; an ordered one 4, from word PAIR_ROOT.
+override PAIR_ROOT: u32 = 0u;
+@group(0) @binding(1) var<storage, read> nodes: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> tris: array<Tri>;
 @group(0) @binding(3) var<storage, read> materials: array<Material>;
 @group(0) @binding(4) var<storage, read> emitters: array<Emitter>;

@@ -42,7 +42,7 @@ const TRAVERSAL: Traversal = Traversal::Stackless;
 /// sweeps them on a data-centre GPU through the environment (`SKELIGHT_GPU_TILE`,
 /// `SKELIGHT_GPU_SAMPLES_PER_DISPATCH`, `SKELIGHT_GPU_WORKGROUP` as `8x8`,
 /// `SKELIGHT_GPU_SLICES`, `SKELIGHT_GPU_FUSED` as 0 or 1, `SKELIGHT_GPU_TRAVERSAL` as
-/// `stackless` or `ordered`), so the shape is chosen by
+/// `stackless`, `ordered` or `hybrid`), so the shape is chosen by
 /// measurement rather than by guess. The image does not depend on it: every (pixel, sample)
 /// draws the same random numbers whatever thread or dispatch takes it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -111,7 +111,7 @@ impl LaunchShape {
         let traversal = match var("SKELIGHT_GPU_TRAVERSAL") {
             None => TRAVERSAL,
             Some(v) => Traversal::from_name(&v).ok_or_else(|| {
-                GpuError::Invalid(format!("SKELIGHT_GPU_TRAVERSAL={v}: expected stackless or ordered"))
+                GpuError::Invalid(format!("SKELIGHT_GPU_TRAVERSAL={v}: expected stackless, ordered or hybrid"))
             })?,
         };
         Ok(LaunchShape {

@@ -108,6 +108,8 @@ pub struct GpuRenderer {
     /// Floats per pixel in `splats`: 3, or 10 under the tent filter.
     splat_floats: usize,
     shape: LaunchShape,
+    /// Where the ordered layout's nodes begin in `nodes` (the kernels' PAIR_ROOT).
+    pair_root: u32,
     rays: u64,
     memory: Memory,
     /// The adapter, in words (name, driver, type).
@@ -220,18 +222,13 @@ impl GpuRenderer {
         let mut shape = LaunchShape::from_env(info.device_type, flat.params.width * flat.params.height)?;
         adjust(&mut shape);
         shape.check()?;
-        // The traversal's kernel and the BVH layout it reads.
-        let (traversal_source, node_bytes): (&str, Vec<u8>) = match shape.traversal {
-            Traversal::Stackless => {
-                (include_str!("traverse_stackless.wgsl"), bytemuck::cast_slice(&flat.nodes).to_vec())
-            }
-            Traversal::Ordered => {
-                (include_str!("traverse_ordered.wgsl"), bytemuck::cast_slice(&bvh::pair_nodes(&flat.nodes)).to_vec())
-            }
-        };
+        // The BVH layouts the traversal reads, and the `traverse` that calls it.
+        let (device_nodes, pair_root) = shape.traversal.device_nodes(&flat.nodes);
         let source = [
             include_str!("common.wgsl"),
-            traversal_source,
+            include_str!("traverse_stackless.wgsl"),
+            include_str!("traverse_ordered.wgsl"),
+            shape.traversal.dispatcher(),
             include_str!("texture.wgsl"),
             include_str!("environment.wgsl"),
             include_str!("light.wgsl"),
@@ -280,6 +277,8 @@ impl GpuRenderer {
             immediate_size: 0,
         });
         let pipeline = |entry: &str, constants: &[(&str, f64)]| {
+            let constants = [constants, &[("PAIR_ROOT", pair_root as f64)]].concat();
+            let constants = constants.as_slice();
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
                 layout: Some(&pipeline_layout),
@@ -331,7 +330,7 @@ impl GpuRenderer {
             mapped_at_creation: false,
         });
         let scene_bytes = [
-            node_bytes.len(),
+            std::mem::size_of_val(device_nodes.as_slice()),
             std::mem::size_of_val(flat.tris.as_slice()),
             std::mem::size_of_val(flat.materials.as_slice()),
             std::mem::size_of_val(flat.emitters.as_slice()),
@@ -340,7 +339,7 @@ impl GpuRenderer {
         ]
         .iter()
         .sum::<usize>() as u64;
-        let nodes = storage(&device, "nodes", &node_bytes);
+        let nodes = storage(&device, "nodes", bytemuck::cast_slice(&device_nodes));
         let tris = storage(&device, "tris", bytemuck::cast_slice(&flat.tris));
         let materials = storage(&device, "materials", bytemuck::cast_slice(&flat.materials));
         let emitters = storage(&device, "emitters", bytemuck::cast_slice(&flat.emitters));
@@ -393,12 +392,13 @@ impl GpuRenderer {
                 // the shader compiler keeps in registers or spills to local memory.
                 path_state_bytes: match shape.traversal {
                     Traversal::Stackless => 0,
-                    Traversal::Ordered => (bvh::MAX_DEPTH * 8) as u64,
+                    Traversal::Ordered | Traversal::Hybrid => (bvh::MAX_DEPTH * 8) as u64,
                 },
             },
             splat_floats,
             pixels,
             shape,
+            pair_root,
             adapter: name,
             splat_mode: if float_atomics { Splats::FloatAtomics } else { Splats::CompareAndSwap },
         })
@@ -492,7 +492,10 @@ impl GpuRenderer {
             })),
             module: &self.module,
             entry_point: Some("rays_main"),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &[("PAIR_ROOT", self.pair_root as f64)],
+                ..Default::default()
+            },
             cache: None,
         });
         let ray_buffer = storage(&self.device, "bench rays", bytemuck::cast_slice(rays));

@@ -1,16 +1,6 @@
-// The stackless traversal (bvh.rs, `Traversal::Stackless`): one box per node, depth-first
+// The stackless traversal (bvh.rs, `Traversal::Stackless`): one box per node of 3 words (lo
+// and first triangle; hi and triangle count, 0 for an inner node; the miss link), depth-first
 // with a miss link per node, children in a fixed order (the left first).
-
-struct Node {
-    lo: vec3<f32>,
-    first: u32,            // leaf: first triangle; inner: 0
-    hi: vec3<f32>,
-    count: u32,            // leaf: triangle count; inner: 0
-    miss: u32,             // next node when this one is missed or done (0xffffffff: end)
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
-}
 
 fn hit_box(lo: vec3<f32>, hi: vec3<f32>, o: vec3<f32>, inv_d: vec3<f32>, t_max: f32) -> bool {
     let a = (lo - o) * inv_d;
@@ -21,7 +11,7 @@ fn hit_box(lo: vec3<f32>, hi: vec3<f32>, o: vec3<f32>, inv_d: vec3<f32>, t_max: 
 }
 
 // The closest hit in (t_min, t_max), or any hit when `first_hit` (masks: `hit_leaf`).
-fn traverse(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, first_hit: bool) -> Hit {
+fn traverse_stackless(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, first_hit: bool) -> Hit {
     var best = Hit(t_max, NONE, vec2<f32>(0.0));
     let inv_d = 1.0 / d;
     let shear = ray_shear(d);
@@ -30,19 +20,21 @@ fn traverse(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, first_hit: bool)
         if (i == NONE) {
             break;
         }
-        let n = nodes[i];
-        if (!hit_box(n.lo, n.hi, o, inv_d, best.t)) {
-            i = n.miss;
+        let lo = nodes[3u * i];
+        let hi = nodes[3u * i + 1u];
+        if (!hit_box(lo.xyz, hi.xyz, o, inv_d, best.t)) {
+            i = bitcast<u32>(nodes[3u * i + 2u].x);
             continue;
         }
-        if (n.count == 0u) {
+        let count = bitcast<u32>(hi.w);
+        if (count == 0u) {
             i = i + 1u;
             continue;
         }
-        if (hit_leaf(n.first, n.count, o, shear, t_min, first_hit, &best)) {
+        if (hit_leaf(bitcast<u32>(lo.w), count, o, shear, t_min, first_hit, &best)) {
             return best;
         }
-        i = n.miss;
+        i = bitcast<u32>(nodes[3u * i + 2u].x);
     }
     return best;
 }

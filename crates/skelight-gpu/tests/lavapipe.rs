@@ -100,7 +100,7 @@ fn the_gpu_traversals_hit_what_the_cpu_bvh_hits() {
     let packed = |any: f32| -> Vec<[f32; 8]> {
         rays.iter().map(|r| [r.o.x, r.o.y, r.o.z, 1e30, r.d.x, r.d.y, r.d.z, any]).collect()
     };
-    for traversal in [Traversal::Stackless, Traversal::Ordered] {
+    for traversal in Traversal::ALL {
         let gpu = GpuRenderer::with_shape(&scene, Estimator::Pt, Splats::Auto, |s| s.traversal = traversal).unwrap();
         let (_, closest) = gpu.trace(&packed(0.0), 1).unwrap();
         let (_, any) = gpu.trace(&packed(1.0), 1).unwrap();
@@ -120,22 +120,22 @@ fn the_gpu_traversals_hit_what_the_cpu_bvh_hits() {
     }
 }
 
-/// The ordered traversal renders what the stackless one renders: the same seed gives the same
-/// image up to rounding (the same closest hits, found in another order).
+/// The ordered and hybrid traversals render what the stackless one renders: the same seed
+/// gives the same image up to rounding (the same hits, found in another order).
 #[test]
 fn the_traversal_does_not_change_the_image() {
     let mut scene = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 24, 16);
     scene.settings.max_depth = 4;
     for estimator in [Estimator::Pt, Estimator::Ibpt] {
         let Some(mut stackless) = open_with(&scene, estimator, Splats::Auto).unwrap() else { return };
-        let mut ordered = GpuRenderer::with_shape(&scene, estimator, Splats::Auto, |s| {
-            s.traversal = skelight_gpu::Traversal::Ordered
-        })
-        .unwrap();
-        let (a, b) = (render(&mut stackless, &scene, 8, 5).image(), render(&mut ordered, &scene, 8, 5).image());
-        let worst = worst_relative_difference(&a, &b);
-        println!("{}: worst relative difference {worst:.2e} between the traversals", estimator.name());
-        assert!(worst < 1e-4, "{}: the traversal changed the image (relative difference {worst})", estimator.name());
+        let a = render(&mut stackless, &scene, 8, 5).image();
+        for traversal in [skelight_gpu::Traversal::Ordered, skelight_gpu::Traversal::Hybrid] {
+            let mut other =
+                GpuRenderer::with_shape(&scene, estimator, Splats::Auto, |s| s.traversal = traversal).unwrap();
+            let worst = worst_relative_difference(&a, &render(&mut other, &scene, 8, 5).image());
+            println!("{} {traversal:?}: worst relative difference {worst:.2e} from stackless", estimator.name());
+            assert!(worst < 1e-4, "{} {traversal:?}: the traversal changed the image ({worst})", estimator.name());
+        }
     }
 }
 
