@@ -121,7 +121,7 @@ case "${1:-}" in
                 --resolution 64 36 2>&1 | tail -40 | tee -a "$report"
             exit 3
         fi
-        steps=" ${STEPS:-table traversal rays check again} "
+        steps=" ${STEPS:-table traversal wavefront rays check again} "
         # 2. The table: GPU pt and ibpt per scene, default launch shape.
         [[ $steps == *" table "* ]] && for entry in "${SCENES[@]}"; do
             IFS=: read -r scene w h <<<"$entry"
@@ -140,6 +140,18 @@ case "${1:-}" in
                     SKELIGHT_GPU_TRAVERSAL=$traversal one "traversal $traversal: $scene $estimator $spp spp" 60 \
                         "$bin" bench render "$scene" --device gpu -i "$estimator" --spp "$spp" \
                         --resolution $((w / r)) $((h / r))
+                done
+            done
+        done
+        # 2c. The wavefront camera pass (wavefront.wgsl) against the table's megakernel, with the
+        # stackless and the hybrid traversal.
+        [[ $steps == *" wavefront "* ]] && for entry in "${SCENES[@]}"; do
+            IFS=: read -r scene w h <<<"$entry"
+            for traversal in stackless hybrid; do
+                for estimator in pt ibpt; do
+                    SKELIGHT_GPU_WAVEFRONT=1 SKELIGHT_GPU_TRAVERSAL=$traversal one \
+                        "wavefront, $traversal: $scene $estimator $spp spp" 60 "$bin" bench render "$scene" \
+                        --device gpu -i "$estimator" --spp "$spp" --resolution $((w / r)) $((h / r))
                 done
             done
         done

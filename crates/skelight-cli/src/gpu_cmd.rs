@@ -87,7 +87,11 @@ pub(crate) fn bench(path: &std::path::Path, scene: &skelight::scene::Scene, name
         memory.scene_bytes as f64 / 1e6,
         memory.film_bytes_per_pixel,
         memory.path_state_bytes,
-        if memory.path_state_bytes == 0 { "registers only" } else { "the traversal's stack, at most" }
+        if memory.path_state_bytes == 0 {
+            "registers only"
+        } else {
+            "the wavefront's state and the traversal's stack, at most"
+        }
     );
     Ok(())
 }

@@ -35,8 +35,8 @@ struct Params {
     aperture_radius: f32,  // the thin lens's (0: a pinhole)
     focus_distance: f32,
     slices: u32,           // the dispatch's depth: thread z takes samples z, z + slices, …
-    pad3: u32,
-    pad4: u32,
+    wave: u32,             // the wavefront camera pass: which group of `slices` samples this wave takes
+    wf_tile: u32,          // the wavefront pass: its path buffers' tile side (paths = wf_tile² · slices)
 }
 
 struct Tri {

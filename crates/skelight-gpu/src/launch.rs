@@ -37,12 +37,15 @@ const FUSED: bool = false;
 /// the ordered traversal fetches 2.0-2.4× fewer nodes per ray (counted on the CPU) and waits
 /// for a device to be timed against it.
 const TRAVERSAL: Traversal = Traversal::Stackless;
+/// Whether the camera pass runs as a wavefront (wavefront.wgsl): off, the megakernel being
+/// what was measured; the wavefront waits for a device to be timed against it.
+const WAVEFRONT: bool = false;
 
 /// The megakernels' launch shape. The defaults are the constants above; `bench/gpu_device.sh`
 /// sweeps them on a data-centre GPU through the environment (`SKELIGHT_GPU_TILE`,
 /// `SKELIGHT_GPU_SAMPLES_PER_DISPATCH`, `SKELIGHT_GPU_WORKGROUP` as `8x8`,
 /// `SKELIGHT_GPU_SLICES`, `SKELIGHT_GPU_FUSED` as 0 or 1, `SKELIGHT_GPU_TRAVERSAL` as
-/// `stackless`, `ordered` or `hybrid`), so the shape is chosen by
+/// `stackless`, `ordered` or `hybrid`, `SKELIGHT_GPU_WAVEFRONT` as 0 or 1), so the shape is chosen by
 /// measurement rather than by guess. The image does not depend on it: every (pixel, sample)
 /// draws the same random numbers whatever thread or dispatch takes it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -57,6 +60,9 @@ pub struct LaunchShape {
     pub fused: bool,
     /// How the kernels traverse the BVH (and so which of its layouts the device holds).
     pub traversal: Traversal,
+    /// The camera pass as a wavefront of kernels over queues of live paths (wavefront.wgsl)
+    /// instead of one megakernel.
+    pub wavefront: bool,
 }
 
 impl LaunchShape {
@@ -114,6 +120,12 @@ impl LaunchShape {
                 GpuError::Invalid(format!("SKELIGHT_GPU_TRAVERSAL={v}: expected stackless, ordered or hybrid"))
             })?,
         };
+        let wavefront = match var("SKELIGHT_GPU_WAVEFRONT").as_deref() {
+            None => WAVEFRONT,
+            Some("0") => false,
+            Some("1") => true,
+            Some(v) => return Err(GpuError::Invalid(format!("SKELIGHT_GPU_WAVEFRONT={v}: expected 0 or 1"))),
+        };
         Ok(LaunchShape {
             tile,
             samples_per_dispatch,
@@ -121,6 +133,7 @@ impl LaunchShape {
             slices: number("SKELIGHT_GPU_SLICES", slices, MAX_SLICES)?,
             fused,
             traversal,
+            wavefront,
         })
     }
 
@@ -176,6 +189,7 @@ mod tests {
             slices: 16,
             fused: false,
             traversal: Traversal::Stackless,
+            wavefront: false,
         };
         shape.fit(1000, 16 * 1000 * 3).unwrap();
         assert_eq!(shape.slices, 3);

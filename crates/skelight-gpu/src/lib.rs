@@ -13,6 +13,7 @@ pub mod bvh;
 pub mod flatten;
 mod launch;
 mod tables;
+mod wavefront;
 
 use skelight::film::Film;
 use skelight::scene::Scene;
@@ -110,6 +111,8 @@ pub struct GpuRenderer {
     shape: LaunchShape,
     /// Where the ordered layout's nodes begin in `nodes` (the kernels' PAIR_ROOT).
     pair_root: u32,
+    /// The wavefront camera pass's buffers and kernels, when the shape asks for it.
+    wavefront: Option<wavefront::Wavefront>,
     rays: u64,
     memory: Memory,
     /// The adapter, in words (name, driver, type).
@@ -193,9 +196,13 @@ impl GpuRenderer {
         let limits = adapter.limits();
         let float_atomics =
             splats != Splats::CompareAndSwap && adapter.features().contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
-        if limits.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
+        let mut shape = LaunchShape::from_env(info.device_type, flat.params.width * flat.params.height)?;
+        adjust(&mut shape);
+        shape.check()?;
+        let storage_buffers = STORAGE_BUFFERS + if shape.wavefront { wavefront::BUFFERS } else { 0 };
+        if limits.max_storage_buffers_per_shader_stage < storage_buffers {
             return Err(GpuError::Device(format!(
-                "{name} offers {} storage buffers per shader stage; the kernels need {STORAGE_BUFFERS}",
+                "{name} offers {} storage buffers per shader stage; the kernels need {storage_buffers}",
                 limits.max_storage_buffers_per_shader_stage
             )));
         }
@@ -209,7 +216,7 @@ impl GpuRenderer {
                 },
                 required_limits: wgpu::Limits {
                     max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
-                    max_storage_buffers_per_shader_stage: STORAGE_BUFFERS,
+                    max_storage_buffers_per_shader_stage: storage_buffers,
                     max_buffer_size: limits.max_buffer_size,
                     ..wgpu::Limits::default()
                 },
@@ -219,9 +226,6 @@ impl GpuRenderer {
             .map_err(|e| GpuError::Device(e.to_string()))?;
         // Splats add with float atomics where the adapter has them, else by compare and swap.
         let splat = if float_atomics { include_str!("splat_f32.wgsl") } else { include_str!("splat_cas.wgsl") };
-        let mut shape = LaunchShape::from_env(info.device_type, flat.params.width * flat.params.height)?;
-        adjust(&mut shape);
-        shape.check()?;
         // The BVH layouts the traversal reads, and the `traverse` that calls it.
         let (device_nodes, pair_root) = shape.traversal.device_nodes(&flat.nodes);
         let source = [
@@ -237,6 +241,7 @@ impl GpuRenderer {
             include_str!("film.wgsl"),
             include_str!("camera_pass.wgsl"),
             include_str!("light_pass.wgsl"),
+            if shape.wavefront { include_str!("wavefront.wgsl") } else { "" },
         ];
         let max_bytes = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
         shape.fit((flat.params.width * flat.params.height) as u64, max_bytes)?;
@@ -276,22 +281,29 @@ impl GpuRenderer {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = |entry: &str, constants: &[(&str, f64)]| {
+        let pipeline_with = |layout: &wgpu::PipelineLayout, entry: &str, constants: &[(&str, f64)]| {
             let constants = [constants, &[("PAIR_ROOT", pair_root as f64)]].concat();
             let constants = constants.as_slice();
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
-                layout: Some(&pipeline_layout),
+                layout: Some(layout),
                 module: &module,
                 entry_point: Some(entry),
                 compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
                 cache: None,
             })
         };
+        let pipeline = |entry: &str, constants: &[(&str, f64)]| pipeline_with(&pipeline_layout, entry, constants);
         // The fused instant-BPT kernel is the camera pass with its `FUSED` constant set.
         let fused = shape.fused && estimator == Estimator::Ibpt;
         let camera_pass = pipeline("camera_main", &[("FUSED", if fused { 1.0 } else { 0.0 })]);
         let light_pass = pipeline("light_main", &[]);
+        let wavefront = if shape.wavefront {
+            let side = shape.tile.min(flat.params.width.max(flat.params.height));
+            Some(wavefront::Wavefront::new(&device, &layout, side, shape.slices, &|l, e| pipeline_with(l, e, &[]))?)
+        } else {
+            None
+        };
         let pixels = (flat.params.width * flat.params.height) as usize;
         // Light splats (rgb), and under the tent filter the camera samples' weighted sums (7).
         let splat_floats = if flat.params.filter_radius > 0.0 { 10 } else { 3 };
@@ -393,12 +405,13 @@ impl GpuRenderer {
                 path_state_bytes: match shape.traversal {
                     Traversal::Stackless => 0,
                     Traversal::Ordered | Traversal::Hybrid => (bvh::MAX_DEPTH * 8) as u64,
-                },
+                } + wavefront.as_ref().map_or(0, |w| w.bytes_per_path),
             },
             splat_floats,
             pixels,
             shape,
             pair_root,
+            wavefront,
             adapter: name,
             splat_mode: if float_atomics { Splats::FloatAtomics } else { Splats::CompareAndSwap },
         })
@@ -432,22 +445,40 @@ impl GpuRenderer {
             encoder.clear_buffer(&self.counters, 0, None);
             self.queue.submit([encoder.finish()]);
             let LaunchShape { tile, samples_per_dispatch, workgroup: (wx, wy), slices, fused, .. } = self.shape;
+            let fused = fused && self.wavefront.is_none();
             let light_pass = self.estimator != Estimator::Pt && !(fused && self.estimator == Estimator::Ibpt);
             for offset in (0..n).step_by(samples_per_dispatch as usize) {
                 let samples = samples_per_dispatch.min(n - offset);
                 for y0 in (0..h).step_by(tile as usize) {
                     for x0 in (0..w).step_by(tile as usize) {
                         let p = Params { first_sample: first + done + offset, samples, x0, y0, slices, ..self.params };
+                        let (tw, th) = (tile.min(w - x0), tile.min(h - y0));
+                        // Slices beyond the samples of the dispatch would have nothing to do.
+                        let depth = slices.min(samples);
+                        if let Some(wavefront) = &self.wavefront {
+                            // The camera pass in waves of `slices` samples per pixel.
+                            for wave in 0..samples.div_ceil(slices) {
+                                let p = Params { wave, wf_tile: wavefront.tile, ..p };
+                                self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
+                                wavefront.run(
+                                    &self.device,
+                                    &self.queue,
+                                    &self.bind_group,
+                                    (tw, th, depth),
+                                    (wx, wy),
+                                    self.params.max_depth,
+                                )?;
+                            }
+                        }
                         self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
                         let mut encoder = self.device.create_command_encoder(&Default::default());
                         {
                             let mut pass = encoder.begin_compute_pass(&Default::default());
                             pass.set_bind_group(0, &self.bind_group, &[]);
-                            let (tw, th) = (tile.min(w - x0), tile.min(h - y0));
-                            pass.set_pipeline(&self.camera_pass);
-                            // Slices beyond the samples of the dispatch would have nothing to do.
-                            let depth = slices.min(samples);
-                            pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
+                            if self.wavefront.is_none() {
+                                pass.set_pipeline(&self.camera_pass);
+                                pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
+                            }
                             if light_pass {
                                 pass.set_pipeline(&self.light_pass);
                                 pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);

@@ -1,0 +1,211 @@
+//! The wavefront camera pass (wavefront.wgsl): its buffers, pipelines and the sequence of
+//! dispatches of one wave. Chosen by `SKELIGHT_GPU_WAVEFRONT=1` (launch.rs) against the
+//! megakernel, for measurement on a data-centre GPU (docs/benchmarks.md).
+
+use crate::GpuError;
+
+/// Bytes of one path's state (`CameraPath`), hit (`Hit`) and shadow ray (`ShadowRay`).
+const PATH_BYTES: u64 = 112;
+const HIT_BYTES: u64 = 16;
+const SHADOW_BYTES: u64 = 48;
+/// Storage buffers of the wavefront's bind groups (group 1, and group 2: the arguments).
+pub(crate) const BUFFERS: u32 = 7;
+/// Bounces encoded between two checks of whether any path is alive, for unbounded depth.
+const BOUNCES_PER_CHECK: u32 = 8;
+/// The megakernel's bound on a walk's vertices (camera_pass.wgsl).
+const MAX_BOUNCES: u32 = 4097;
+
+pub(crate) struct Wavefront {
+    start: wgpu::ComputePipeline,
+    args: wgpu::ComputePipeline,
+    extend: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
+    shadow: wgpu::ComputePipeline,
+    finish: wgpu::ComputePipeline,
+    /// Queue A in and B out, and the other way round.
+    groups: [wgpu::BindGroup; 2],
+    args_group: wgpu::BindGroup,
+    counts: wgpu::Buffer,
+    args_buffer: wgpu::Buffer,
+    counts_readback: wgpu::Buffer,
+    /// The tile side the path buffers are laid out by.
+    pub(crate) tile: u32,
+    /// Device memory per path in flight: its state, hit, shadow ray and two queue entries.
+    pub(crate) bytes_per_path: u64,
+}
+
+impl Wavefront {
+    /// Buffers for `tile`² · `slices` paths, and the kernels' pipelines over `scene_layout`
+    /// (group 0) and the wavefront's group 1; `pipeline` builds one from a layout and entry.
+    pub(crate) fn new(
+        device: &wgpu::Device,
+        scene_layout: &wgpu::BindGroupLayout,
+        tile: u32,
+        slices: u32,
+        pipeline: &dyn Fn(&wgpu::PipelineLayout, &str) -> wgpu::ComputePipeline,
+    ) -> Result<Wavefront, GpuError> {
+        let paths = tile as u64 * tile as u64 * slices as u64;
+        let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let state = buffer("wavefront paths", paths * PATH_BYTES, storage);
+        let hits = buffer("wavefront hits", paths * HIT_BYTES, storage);
+        let shadows = buffer("wavefront shadow rays", paths * SHADOW_BYTES, storage);
+        let queues = [buffer("wavefront queue a", paths * 4, storage), buffer("wavefront queue b", paths * 4, storage)];
+        let counts =
+            buffer("wavefront counts", 16, storage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST);
+        let args_buffer = buffer("wavefront dispatch arguments", 24, storage | wgpu::BufferUsages::INDIRECT);
+        let counts_readback =
+            buffer("wavefront counts readback", 16, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+        let entry = |i: u32| wgpu::BindGroupLayoutEntry {
+            binding: i,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: false },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("wavefront"),
+            entries: &(0..BUFFERS - 1).map(entry).collect::<Vec<_>>(),
+        });
+        let args_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("wavefront arguments"),
+            entries: &[entry(0)],
+        });
+        let args_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("wavefront arguments"),
+            layout: &args_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: args_buffer.as_entire_binding() }],
+        });
+        let group = |a: usize, b: usize| {
+            let resources = [&state, &hits, &shadows, &queues[a], &queues[b], &counts];
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("wavefront"),
+                layout: &layout,
+                entries: &resources
+                    .iter()
+                    .enumerate()
+                    .map(|(i, r)| wgpu::BindGroupEntry { binding: i as u32, resource: r.as_entire_binding() })
+                    .collect::<Vec<_>>(),
+            })
+        };
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("wavefront"),
+            bind_group_layouts: &[Some(scene_layout), Some(&layout)],
+            immediate_size: 0,
+        });
+        let args_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("wavefront arguments"),
+            bind_group_layouts: &[Some(scene_layout), Some(&layout), Some(&args_layout)],
+            immediate_size: 0,
+        });
+        let kernel = |entry: &str| pipeline(&pipeline_layout, entry);
+        Ok(Wavefront {
+            start: kernel("wf_start"),
+            args: pipeline(&args_pipeline_layout, "wf_args_main"),
+            args_group,
+            extend: kernel("wf_extend"),
+            shade: kernel("wf_shade"),
+            shadow: kernel("wf_shadow"),
+            finish: kernel("wf_finish"),
+            groups: [group(0, 1), group(1, 0)],
+            counts,
+            args_buffer,
+            counts_readback,
+            tile,
+            bytes_per_path: PATH_BYTES + HIT_BYTES + SHADOW_BYTES + 8,
+        })
+    }
+
+    /// Runs one wave (Params already written: the tile, its samples, `wave`): the camera rays
+    /// of its paths, `max_depth` bounces (or until none is alive, checked every few bounces
+    /// when the depth is unbounded), and the paths' radiance into the film's sums.
+    pub(crate) fn run(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        scene: &wgpu::BindGroup,
+        (tw, th, depth): (u32, u32, u32),
+        (wx, wy): (u32, u32),
+        max_depth: i32,
+    ) -> Result<(), GpuError> {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(&self.counts, 0, None);
+        let pass = |encoder: &mut wgpu::CommandEncoder, side: usize, run: &dyn Fn(&mut wgpu::ComputePass)| {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_bind_group(0, scene, &[]);
+            pass.set_bind_group(1, &self.groups[side], &[]);
+            run(&mut pass);
+        };
+        // The camera rays, appended to queue b (group 0's out). Each wf_args then makes the
+        // paths appended the queue in, and the bind groups swap with it.
+        pass(&mut encoder, 0, &|p| {
+            p.set_pipeline(&self.start);
+            p.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
+        });
+        let args = |encoder: &mut wgpu::CommandEncoder, side: usize| {
+            pass(encoder, side, &|p| {
+                p.set_bind_group(2, &self.args_group, &[]);
+                p.set_pipeline(&self.args);
+                p.dispatch_workgroups(1, 1, 1);
+            })
+        };
+        args(&mut encoder, 0);
+        let mut side = 1;
+        let bounces = if max_depth >= 0 { (max_depth as u32).min(MAX_BOUNCES) } else { MAX_BOUNCES };
+        let mut bounce = 0;
+        while bounce < bounces {
+            let chunk = if max_depth >= 0 { bounces } else { BOUNCES_PER_CHECK.min(bounces - bounce) };
+            for _ in 0..chunk {
+                pass(&mut encoder, side, &|p| {
+                    p.set_pipeline(&self.extend);
+                    p.dispatch_workgroups_indirect(&self.args_buffer, 0);
+                    p.set_pipeline(&self.shade);
+                    p.dispatch_workgroups_indirect(&self.args_buffer, 0);
+                });
+                // The survivors become the next bounce's queue in, the shadow rays made
+                // those to trace now.
+                args(&mut encoder, side);
+                side ^= 1;
+                pass(&mut encoder, side, &|p| {
+                    p.set_pipeline(&self.shadow);
+                    p.dispatch_workgroups_indirect(&self.args_buffer, 12);
+                });
+            }
+            bounce += chunk;
+            if bounce < bounces && max_depth < 0 {
+                encoder.copy_buffer_to_buffer(&self.counts, 0, &self.counts_readback, 0, 16);
+                let done = std::mem::replace(&mut encoder, device.create_command_encoder(&Default::default()));
+                queue.submit([done.finish()]);
+                if self.alive(device)? == 0 {
+                    break;
+                }
+            }
+        }
+        pass(&mut encoder, side, &|p| {
+            p.set_pipeline(&self.finish);
+            p.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
+        });
+        queue.submit([encoder.finish()]);
+        Ok(())
+    }
+
+    /// Paths still alive after the last bounce submitted (read back from the counts).
+    fn alive(&self, device: &wgpu::Device) -> Result<u32, GpuError> {
+        let slice = self.counts_readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        device
+            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let alive = {
+            let data = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
+            bytemuck::cast_slice::<u8, u32>(&data)[0]
+        };
+        self.counts_readback.unmap();
+        Ok(alive)
+    }
+}
