@@ -597,6 +597,13 @@ mod tests {
         }
     }
 
+    /// The ordered kernel's stack holds what the depth bound lets a traversal push.
+    #[test]
+    fn the_kernels_stack_matches_the_depth_bound() {
+        let wgsl = include_str!("traverse_ordered.wgsl");
+        assert!(wgsl.contains(&format!("const STACK: u32 = {MAX_DEPTH}u;")), "STACK in traverse_ordered.wgsl");
+    }
+
     /// A tree that is one leaf (or none) still gives the ordered layout a root.
     #[test]
     fn small_trees_have_a_paired_root() {

@@ -36,7 +36,11 @@ struct Params {
     focus_distance: f32,
     slices: u32,           // the dispatch's depth: thread z takes samples z, z + slices, …
     wave: u32,             // the wavefront camera pass: which group of `slices` samples this wave takes
-    wf_tile: u32,          // the wavefront pass: its path buffers' tile side (paths = wf_tile² · slices)
+    wf_tile_w: u32,        // the tile its path buffers are laid out by (paths = w · h · slices)
+    wf_tile_h: u32,
+    pad5: u32,
+    pad6: u32,
+    pad7: u32,
 }
 
 struct Tri {

@@ -173,10 +173,12 @@ pub struct Params {
     pub focus_distance: f32,
     /// The dispatch's depth: thread z takes samples z, z + slices, … into film slice z.
     pub slices: u32,
-    /// The wavefront camera pass: the group of `slices` samples a wave takes, and the tile side
-    /// its path buffers are laid out by.
+    /// The wavefront camera pass: the group of `slices` samples a wave takes, and the tile
+    /// size its path buffers are laid out by.
     pub wave: u32,
-    pub wf_tile: u32,
+    pub wf_tile_w: u32,
+    pub wf_tile_h: u32,
+    pub pad: [u32; 3],
 }
 
 /// Everything the kernels read of a scene.

@@ -138,15 +138,31 @@ impl LaunchShape {
     }
 
     /// Fewer slices where the film's sums would outgrow a storage buffer of `max_bytes`
-    /// (the adapter's limit): an image the device could render with one slice still renders.
-    pub(crate) fn fit(&mut self, pixels: u64, max_bytes: u64) -> Result<(), GpuError> {
+    /// (the adapter's limit), or the wavefront's paths (`tile_pixels` a slice) their buffer or
+    /// the indirect dispatches' reach: an image the device could render with one slice still
+    /// renders.
+    pub(crate) fn fit(&mut self, pixels: u64, tile_pixels: u64, max_bytes: u64) -> Result<(), GpuError> {
         let per_slice = pixels * 16;
         if per_slice > max_bytes {
             return Err(GpuError::Device(format!(
                 "{pixels} pixels need {per_slice} bytes of sums; the adapter's storage buffers hold {max_bytes}"
             )));
         }
-        self.slices = self.slices.min((max_bytes / per_slice).min(MAX_SLICES as u64) as u32).max(1);
+        let mut most = (max_bytes / per_slice).min(MAX_SLICES as u64);
+        if self.wavefront {
+            let paths = tile_pixels.max(1);
+            most =
+                most.min(max_bytes / (paths * crate::wavefront::PATH_BYTES)).min(crate::wavefront::MAX_PATHS / paths);
+            if most == 0 {
+                return Err(GpuError::Invalid(format!(
+                    "a wavefront of {paths} paths (a tile of {} pixels a side) does not fit the adapter \
+                     ({max_bytes} bytes a buffer, {} paths a wave): set a smaller SKELIGHT_GPU_TILE",
+                    self.tile,
+                    crate::wavefront::MAX_PATHS
+                )));
+            }
+        }
+        self.slices = self.slices.min(most as u32).max(1);
         Ok(())
     }
 
@@ -191,11 +207,18 @@ mod tests {
             traversal: Traversal::Stackless,
             wavefront: false,
         };
-        shape.fit(1000, 16 * 1000 * 3).unwrap();
+        shape.fit(1000, 1000, 16 * 1000 * 3).unwrap();
         assert_eq!(shape.slices, 3);
-        shape.fit(1000, 1 << 40).unwrap();
+        shape.fit(1000, 1000, 1 << 40).unwrap();
         assert_eq!(shape.slices, 3, "fitting never adds slices");
-        assert!(matches!(shape.fit(1000, 100), Err(GpuError::Device(_))));
+        assert!(matches!(shape.fit(1000, 1000, 100), Err(GpuError::Device(_))));
+        // The wavefront's paths: within the indirect dispatches' reach and the buffers.
+        let mut wavefront = LaunchShape { slices: 16, wavefront: true, tile: 2048, ..shape };
+        wavefront.fit(1 << 22, 1 << 20, 1 << 40).unwrap();
+        assert_eq!(wavefront.slices, 3, "4 194 240 paths at most");
+        wavefront.fit(1 << 22, 1 << 20, 1 << 28).unwrap();
+        assert_eq!(wavefront.slices, 2, "256 MiB buffers hold two slices of 112-byte paths");
+        assert!(matches!(wavefront.fit(1 << 22, 1 << 22, 1 << 40), Err(GpuError::Invalid(_))), "a 2048² tile");
         assert!(
             LaunchShape { workgroup: (65536, 65536), ..shape }.check().is_err(),
             "an overflowing workgroup is refused"

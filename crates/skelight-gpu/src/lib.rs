@@ -244,7 +244,8 @@ impl GpuRenderer {
             if shape.wavefront { include_str!("wavefront.wgsl") } else { "" },
         ];
         let max_bytes = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
-        shape.fit((flat.params.width * flat.params.height) as u64, max_bytes)?;
+        let (w, h) = (flat.params.width as u64, flat.params.height as u64);
+        shape.fit(w * h, w.min(shape.tile as u64) * h.min(shape.tile as u64), max_bytes)?;
         let (wx, wy) = shape.workgroup;
         let source = source.concat().replace("@workgroup_size(8, 8)", &format!("@workgroup_size({wx}, {wy})"));
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -299,8 +300,8 @@ impl GpuRenderer {
         let camera_pass = pipeline("camera_main", &[("FUSED", if fused { 1.0 } else { 0.0 })]);
         let light_pass = pipeline("light_main", &[]);
         let wavefront = if shape.wavefront {
-            let side = shape.tile.min(flat.params.width.max(flat.params.height));
-            Some(wavefront::Wavefront::new(&device, &layout, side, shape.slices, &|l, e| pipeline_with(l, e, &[]))?)
+            let tile = (shape.tile.min(flat.params.width), shape.tile.min(flat.params.height));
+            Some(wavefront::Wavefront::new(&device, &layout, tile, shape.slices, &|l, e| pipeline_with(l, e, &[]))?)
         } else {
             None
         };
@@ -458,7 +459,8 @@ impl GpuRenderer {
                         if let Some(wavefront) = &self.wavefront {
                             // The camera pass in waves of `slices` samples per pixel.
                             for wave in 0..samples.div_ceil(slices) {
-                                let p = Params { wave, wf_tile: wavefront.tile, ..p };
+                                let (wf_tile_w, wf_tile_h) = wavefront.tile;
+                                let p = Params { wave, wf_tile_w, wf_tile_h, ..p };
                                 self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
                                 wavefront.run(
                                     &self.device,

@@ -5,12 +5,16 @@
 use crate::GpuError;
 
 /// Bytes of one path's state (`CameraPath`), hit (`Hit`) and shadow ray (`ShadowRay`).
-const PATH_BYTES: u64 = 112;
+pub(crate) const PATH_BYTES: u64 = 112;
 const HIT_BYTES: u64 = 16;
 const SHADOW_BYTES: u64 = 48;
 /// Storage buffers of the wavefront's bind groups (group 1, and group 2: the arguments).
 pub(crate) const BUFFERS: u32 = 7;
-/// Bounces encoded between two checks of whether any path is alive, for unbounded depth.
+/// Paths a wave may hold: the indirect dispatches' workgroups (64 threads each) stay within
+/// the 65 535 a dimension may have.
+pub(crate) const MAX_PATHS: u64 = 65_535 * 64;
+/// Bounces encoded between two checks of whether any path is alive, when there may be more
+/// than twice as many (unbounded or deep).
 const BOUNCES_PER_CHECK: u32 = 8;
 /// The megakernel's bound on a walk's vertices (camera_pass.wgsl).
 const MAX_BOUNCES: u32 = 4097;
@@ -28,23 +32,27 @@ pub(crate) struct Wavefront {
     counts: wgpu::Buffer,
     args_buffer: wgpu::Buffer,
     counts_readback: wgpu::Buffer,
-    /// The tile side the path buffers are laid out by.
-    pub(crate) tile: u32,
+    /// The tile size the path buffers are laid out by.
+    pub(crate) tile: (u32, u32),
     /// Device memory per path in flight: its state, hit, shadow ray and two queue entries.
     pub(crate) bytes_per_path: u64,
 }
 
 impl Wavefront {
-    /// Buffers for `tile`² · `slices` paths, and the kernels' pipelines over `scene_layout`
+    /// Buffers for `tile.0` · `tile.1` · `slices` paths (at most [`MAX_PATHS`], and the
+    /// adapter's buffer size: LaunchShape::fit), and the kernels' pipelines over `scene_layout`
     /// (group 0) and the wavefront's group 1; `pipeline` builds one from a layout and entry.
     pub(crate) fn new(
         device: &wgpu::Device,
         scene_layout: &wgpu::BindGroupLayout,
-        tile: u32,
+        tile: (u32, u32),
         slices: u32,
         pipeline: &dyn Fn(&wgpu::PipelineLayout, &str) -> wgpu::ComputePipeline,
     ) -> Result<Wavefront, GpuError> {
-        let paths = tile as u64 * tile as u64 * slices as u64;
+        let paths = tile.0 as u64 * tile.1 as u64 * slices as u64;
+        if paths > MAX_PATHS {
+            return Err(GpuError::Invalid(format!("a wave of {paths} paths: at most {MAX_PATHS}")));
+        }
         let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
             device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
         };
@@ -159,7 +167,8 @@ impl Wavefront {
         let bounces = if max_depth >= 0 { (max_depth as u32).min(MAX_BOUNCES) } else { MAX_BOUNCES };
         let mut bounce = 0;
         while bounce < bounces {
-            let chunk = if max_depth >= 0 { bounces } else { BOUNCES_PER_CHECK.min(bounces - bounce) };
+            let chunk =
+                if bounces <= 2 * BOUNCES_PER_CHECK { bounces } else { BOUNCES_PER_CHECK.min(bounces - bounce) };
             for _ in 0..chunk {
                 pass(&mut encoder, side, &|p| {
                     p.set_pipeline(&self.extend);
@@ -177,7 +186,7 @@ impl Wavefront {
                 });
             }
             bounce += chunk;
-            if bounce < bounces && max_depth < 0 {
+            if bounce < bounces {
                 encoder.copy_buffer_to_buffer(&self.counts, 0, &self.counts_readback, 0, 16);
                 let done = std::mem::replace(&mut encoder, device.create_command_encoder(&Default::default()));
                 queue.submit([done.finish()]);

@@ -40,7 +40,7 @@ fn wave_path(id: vec3<u32>) -> WavePath {
     let px = P.x0 + id.x;
     let py = P.y0 + id.y;
     let k = P.wave * P.slices + id.z;
-    let path = (id.z * P.wf_tile + id.y) * P.wf_tile + id.x;
+    let path = (id.z * P.wf_tile_h + id.y) * P.wf_tile_w + id.x;
     return WavePath(path, px, py, k, px < P.width && py < P.height && k < P.samples);
 }
 
