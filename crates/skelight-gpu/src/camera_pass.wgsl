@@ -241,20 +241,25 @@ fn camera_hit(p: ptr<function, CameraPath>, h: Hit) -> ShadowRay {
     return sr;
 }
 
-// Radiance along the camera ray through film position `pos` (pixels); the generator seeded.
-// The megakernel's walk: each shadow ray traced as soon as it is made.
-fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
-    var p = camera_start(pos);
+// The rest of a walk in one thread, each shadow ray traced as soon as it is made (the
+// megakernel's walk, and the wavefront's tail).
+fn camera_walk(p: ptr<function, CameraPath>) {
     loop {
-        if ((p.flags & PATH_ALIVE) == 0u) {
+        if (((*p).flags & PATH_ALIVE) == 0u) {
             break;
         }
-        let h = intersect(p.o, p.d, 3.0e38, false);
-        let sr = camera_hit(&p, h);
+        let h = intersect((*p).o, (*p).d, 3.0e38, false);
+        let sr = camera_hit(p, h);
         if (sr.on != 0u && intersect(sr.o, sr.dir, sr.dist, true).tri == NONE) {
-            p.l = p.l + sr.c;
+            (*p).l = (*p).l + sr.c;
         }
     }
+}
+
+// Radiance along the camera ray through film position `pos` (pixels); the generator seeded.
+fn camera_radiance(pos: vec2<f32>) -> vec3<f32> {
+    var p = camera_start(pos);
+    camera_walk(&p);
     return p.l;
 }
 

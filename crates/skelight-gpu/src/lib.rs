@@ -241,13 +241,14 @@ impl GpuRenderer {
             include_str!("film.wgsl"),
             include_str!("camera_pass.wgsl"),
             include_str!("light_pass.wgsl"),
-            if shape.wavefront { include_str!("wavefront.wgsl") } else { "" },
         ];
+        let wavefront_source = if shape.wavefront { wavefront::source() } else { String::new() };
         let max_bytes = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
         let (w, h) = (flat.params.width as u64, flat.params.height as u64);
         shape.fit(w * h, w.min(shape.tile as u64) * h.min(shape.tile as u64), max_bytes)?;
         let (wx, wy) = shape.workgroup;
-        let source = source.concat().replace("@workgroup_size(8, 8)", &format!("@workgroup_size({wx}, {wy})"));
+        let source = (source.concat() + &wavefront_source)
+            .replace("@workgroup_size(8, 8)", &format!("@workgroup_size({wx}, {wy})"));
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("skelight kernels"),
             source: wgpu::ShaderSource::Wgsl(source.into()),
@@ -457,30 +458,36 @@ impl GpuRenderer {
                         // Slices beyond the samples of the dispatch would have nothing to do.
                         let depth = slices.min(samples);
                         if let Some(wavefront) = &self.wavefront {
-                            // The camera pass in waves of `slices` samples per pixel.
-                            for wave in 0..samples.div_ceil(slices) {
-                                let (wf_tile_w, wf_tile_h) = wavefront.tile;
-                                let p = Params { wave, wf_tile_w, wf_tile_h, ..p };
-                                self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
-                                wavefront.run(
-                                    &self.device,
-                                    &self.queue,
-                                    &self.bind_group,
-                                    (tw, th, depth),
-                                    (wx, wy),
-                                    self.params.max_depth,
-                                )?;
+                            // Both passes in waves of `slices` samples per pixel.
+                            let passes: &[wavefront::Pass] = if light_pass {
+                                &[wavefront::Pass::Camera, wavefront::Pass::Light]
+                            } else {
+                                &[wavefront::Pass::Camera]
+                            };
+                            for &which in passes {
+                                for wave in 0..samples.div_ceil(slices) {
+                                    let (wf_tile_w, wf_tile_h) = wavefront.tile;
+                                    let p = Params { wave, wf_tile_w, wf_tile_h, ..p };
+                                    self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
+                                    wavefront.run(
+                                        which,
+                                        (&self.device, &self.queue),
+                                        &self.bind_group,
+                                        (tw, th, depth),
+                                        (wx, wy),
+                                        self.params.max_depth,
+                                    )?;
+                                }
                             }
+                            continue;
                         }
                         self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
                         let mut encoder = self.device.create_command_encoder(&Default::default());
                         {
                             let mut pass = encoder.begin_compute_pass(&Default::default());
                             pass.set_bind_group(0, &self.bind_group, &[]);
-                            if self.wavefront.is_none() {
-                                pass.set_pipeline(&self.camera_pass);
-                                pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
-                            }
+                            pass.set_pipeline(&self.camera_pass);
+                            pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
                             if light_pass {
                                 pass.set_pipeline(&self.light_pass);
                                 pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);

@@ -4,28 +4,71 @@
 
 use crate::GpuError;
 
-/// Bytes of one path's state (`CameraPath`), hit (`Hit`) and shadow ray (`ShadowRay`).
+/// The kernels' source: wavefront.wgsl, and wave_walk.wgsl once per pass.
+pub(crate) fn source() -> String {
+    let walk = include_str!("wave_walk.wgsl");
+    let pass = |prefix: &str, paths: &str, hit: &str, walk_fn: &str, rays: &str, stream: &str, path_type: &str| {
+        walk.replace("{prefix}", prefix)
+            .replace("{path_type}", path_type)
+            .replace("{paths}", paths)
+            .replace("{hit}", hit)
+            .replace("{walk}", walk_fn)
+            .replace("{rays}", rays)
+            .replace("{stream}", stream)
+    };
+    [
+        include_str!("wavefront.wgsl").to_string(),
+        pass("wf", "wf_paths", "camera_hit", "camera_walk", "wf_shadows", "0u", "CameraPath"),
+        pass("lw", "wf_light_paths", "light_hit", "light_walk", "wf_lens_rays", "1u", "LightPath"),
+    ]
+    .concat()
+}
+
+/// Bytes of one path's state (`CameraPath`, `LightPath`), hit (`Hit`), shadow ray
+/// (`ShadowRay`) and segment to the lens (`LensRay`).
 pub(crate) const PATH_BYTES: u64 = 112;
 const HIT_BYTES: u64 = 16;
 const SHADOW_BYTES: u64 = 48;
+const LENS_RAY_BYTES: u64 = 64;
 /// Storage buffers of the wavefront's bind groups (group 1, and group 2: the arguments).
-pub(crate) const BUFFERS: u32 = 7;
+pub(crate) const BUFFERS: u32 = 9;
 /// Paths a wave may hold: the indirect dispatches' workgroups (64 threads each) stay within
 /// the 65 535 a dimension may have.
 pub(crate) const MAX_PATHS: u64 = 65_535 * 64;
-/// Bounces encoded between two checks of whether any path is alive, when there may be more
+/// Bounces encoded between two checks of how many paths are alive, when there may be more
 /// than twice as many (unbounded or deep).
 const BOUNCES_PER_CHECK: u32 = 8;
+/// At a check, walks finish in one thread each (the tail kernels) once fewer than this share
+/// of the wave is alive: a light path in a closed room (veach-door, unbounded depth) lives
+/// tens of bounces, and on lavapipe each bounce's round of dispatches cost 40 ms whatever
+/// the paths left (the light wavefront 8× slower than its megakernel without the tail).
+const TAIL_SHARE: u32 = 16;
 /// The megakernel's bound on a walk's vertices (camera_pass.wgsl).
 const MAX_BOUNCES: u32 = 4097;
 
-pub(crate) struct Wavefront {
+/// One pass's kernels: the first rays, closest hits, shading, the rays it makes (shadow rays,
+/// or segments to the lens) and, for the camera, the radiance into the film.
+struct Kernels {
     start: wgpu::ComputePipeline,
-    args: wgpu::ComputePipeline,
     extend: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
-    shadow: wgpu::ComputePipeline,
-    finish: wgpu::ComputePipeline,
+    trace: wgpu::ComputePipeline,
+    /// The walks left, each finished in one thread.
+    tail: wgpu::ComputePipeline,
+    finish: Option<wgpu::ComputePipeline>,
+}
+
+/// Which of instant BPT's passes a wave runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Pass {
+    Camera,
+    Light,
+}
+
+pub(crate) struct Wavefront {
+    camera: Kernels,
+    light: Kernels,
+    args: wgpu::ComputePipeline,
     /// Queue A in and B out, and the other way round.
     groups: [wgpu::BindGroup; 2],
     args_group: wgpu::BindGroup,
@@ -34,7 +77,8 @@ pub(crate) struct Wavefront {
     counts_readback: wgpu::Buffer,
     /// The tile size the path buffers are laid out by.
     pub(crate) tile: (u32, u32),
-    /// Device memory per path in flight: its state, hit, shadow ray and two queue entries.
+    /// Device memory per path in flight: the camera's and the light's states, a hit, a shadow
+    /// ray, a segment to the lens and two queue entries.
     pub(crate) bytes_per_path: u64,
 }
 
@@ -61,6 +105,8 @@ impl Wavefront {
         let hits = buffer("wavefront hits", paths * HIT_BYTES, storage);
         let shadows = buffer("wavefront shadow rays", paths * SHADOW_BYTES, storage);
         let queues = [buffer("wavefront queue a", paths * 4, storage), buffer("wavefront queue b", paths * 4, storage)];
+        let light_state = buffer("wavefront light paths", paths * PATH_BYTES, storage);
+        let lens_rays = buffer("wavefront lens rays", paths * LENS_RAY_BYTES, storage);
         let counts =
             buffer("wavefront counts", 16, storage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST);
         let args_buffer = buffer("wavefront dispatch arguments", 24, storage | wgpu::BufferUsages::INDIRECT);
@@ -90,7 +136,7 @@ impl Wavefront {
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: args_buffer.as_entire_binding() }],
         });
         let group = |a: usize, b: usize| {
-            let resources = [&state, &hits, &shadows, &queues[a], &queues[b], &counts];
+            let resources = [&state, &hits, &shadows, &queues[a], &queues[b], &counts, &light_state, &lens_rays];
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("wavefront"),
                 layout: &layout,
@@ -113,34 +159,50 @@ impl Wavefront {
         });
         let kernel = |entry: &str| pipeline(&pipeline_layout, entry);
         Ok(Wavefront {
-            start: kernel("wf_start"),
+            camera: Kernels {
+                start: kernel("wf_start"),
+                extend: kernel("wf_extend"),
+                shade: kernel("wf_shade"),
+                trace: kernel("wf_shadow"),
+                tail: kernel("wf_tail"),
+                finish: Some(kernel("wf_finish")),
+            },
+            light: Kernels {
+                start: kernel("lw_start"),
+                extend: kernel("lw_extend"),
+                shade: kernel("lw_shade"),
+                trace: kernel("lw_connect"),
+                tail: kernel("lw_tail"),
+                finish: None,
+            },
             args: pipeline(&args_pipeline_layout, "wf_args_main"),
             args_group,
-            extend: kernel("wf_extend"),
-            shade: kernel("wf_shade"),
-            shadow: kernel("wf_shadow"),
-            finish: kernel("wf_finish"),
             groups: [group(0, 1), group(1, 0)],
             counts,
             args_buffer,
             counts_readback,
             tile,
-            bytes_per_path: PATH_BYTES + HIT_BYTES + SHADOW_BYTES + 8,
+            bytes_per_path: 2 * PATH_BYTES + HIT_BYTES + SHADOW_BYTES + LENS_RAY_BYTES + 8,
         })
     }
 
-    /// Runs one wave (Params already written: the tile, its samples, `wave`): the camera rays
-    /// of its paths, `max_depth` bounces (or until none is alive, checked every few bounces
-    /// when the depth is unbounded), and the paths' radiance into the film's sums.
+    /// Runs one wave of a pass (Params already written: the tile, its samples, `wave`): the
+    /// first rays of its paths, `max_depth` bounces (or until none is alive, checked every few
+    /// bounces when there may be many), and for the camera the paths' radiance into the film's
+    /// sums (the light pass splats as it goes).
     pub(crate) fn run(
         &self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
+        which: Pass,
+        (device, queue): (&wgpu::Device, &wgpu::Queue),
         scene: &wgpu::BindGroup,
         (tw, th, depth): (u32, u32, u32),
         (wx, wy): (u32, u32),
         max_depth: i32,
     ) -> Result<(), GpuError> {
+        let kernels = match which {
+            Pass::Camera => &self.camera,
+            Pass::Light => &self.light,
+        };
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.counts, 0, None);
         let pass = |encoder: &mut wgpu::CommandEncoder, side: usize, run: &dyn Fn(&mut wgpu::ComputePass)| {
@@ -152,7 +214,7 @@ impl Wavefront {
         // The camera rays, appended to queue b (group 0's out). Each wf_args then makes the
         // paths appended the queue in, and the bind groups swap with it.
         pass(&mut encoder, 0, &|p| {
-            p.set_pipeline(&self.start);
+            p.set_pipeline(&kernels.start);
             p.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
         });
         let args = |encoder: &mut wgpu::CommandEncoder, side: usize| {
@@ -164,6 +226,11 @@ impl Wavefront {
         };
         args(&mut encoder, 0);
         let mut side = 1;
+        // What the start made to trace (the light pass: its light points seen by the camera).
+        pass(&mut encoder, side, &|p| {
+            p.set_pipeline(&kernels.trace);
+            p.dispatch_workgroups_indirect(&self.args_buffer, 12);
+        });
         let bounces = if max_depth >= 0 { (max_depth as u32).min(MAX_BOUNCES) } else { MAX_BOUNCES };
         let mut bounce = 0;
         while bounce < bounces {
@@ -171,9 +238,9 @@ impl Wavefront {
                 if bounces <= 2 * BOUNCES_PER_CHECK { bounces } else { BOUNCES_PER_CHECK.min(bounces - bounce) };
             for _ in 0..chunk {
                 pass(&mut encoder, side, &|p| {
-                    p.set_pipeline(&self.extend);
+                    p.set_pipeline(&kernels.extend);
                     p.dispatch_workgroups_indirect(&self.args_buffer, 0);
-                    p.set_pipeline(&self.shade);
+                    p.set_pipeline(&kernels.shade);
                     p.dispatch_workgroups_indirect(&self.args_buffer, 0);
                 });
                 // The survivors become the next bounce's queue in, the shadow rays made
@@ -181,7 +248,7 @@ impl Wavefront {
                 args(&mut encoder, side);
                 side ^= 1;
                 pass(&mut encoder, side, &|p| {
-                    p.set_pipeline(&self.shadow);
+                    p.set_pipeline(&kernels.trace);
                     p.dispatch_workgroups_indirect(&self.args_buffer, 12);
                 });
             }
@@ -190,15 +257,25 @@ impl Wavefront {
                 encoder.copy_buffer_to_buffer(&self.counts, 0, &self.counts_readback, 0, 16);
                 let done = std::mem::replace(&mut encoder, device.create_command_encoder(&Default::default()));
                 queue.submit([done.finish()]);
-                if self.alive(device)? == 0 {
+                let alive = self.alive(device)?;
+                if alive == 0 {
+                    break;
+                }
+                if alive.saturating_mul(TAIL_SHARE) < tw * th * depth {
+                    pass(&mut encoder, side, &|p| {
+                        p.set_pipeline(&kernels.tail);
+                        p.dispatch_workgroups_indirect(&self.args_buffer, 0);
+                    });
                     break;
                 }
             }
         }
-        pass(&mut encoder, side, &|p| {
-            p.set_pipeline(&self.finish);
-            p.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
-        });
+        if let Some(finish) = &kernels.finish {
+            pass(&mut encoder, side, &|p| {
+                p.set_pipeline(finish);
+                p.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
+            });
+        }
         queue.submit([encoder.finish()]);
         Ok(())
     }

@@ -7,6 +7,10 @@
 //   wf_shade   emission, next-event estimation's shadow ray, the next ray or the end;
 //   wf_shadow  each shadow ray (any hit), adding its contribution when nothing blocks it;
 //   wf_finish  one thread per (pixel, slice): the path's radiance into the film.
+// The light pass of instant BPT likewise (lw_start, lw_extend, lw_shade, and lw_connect, which
+// traces each vertex's segment to the lens and splats), in waves after the camera's. When few
+// walks are left (checked every 8 bounces), wf_tail / lw_tail finish each in one thread. The
+// kernels both passes share (extend, shade, tail) are wave_walk.wgsl, written once for both.
 // The queues compact the live paths, so a kernel's threads all have work and run the same
 // code; the cost is the state's traffic (112 bytes a path, 48 a shadow ray) and more
 // dispatches. The random numbers are the megakernel's (the counter travels with the path), so
@@ -19,6 +23,9 @@
 @group(1) @binding(4) var<storage, read_write> wf_queue_out: array<u32>;
 // [0] paths queued in, [1] paths appended out, [2] shadow rays appended, [3] shadow rays to trace.
 @group(1) @binding(5) var<storage, read_write> wf_counts: array<atomic<u32>, 4>;
+// The light pass's walks and splats (light_pass.wgsl), in a wave of their own.
+@group(1) @binding(6) var<storage, read_write> wf_light_paths: array<LightPath>;
+@group(1) @binding(7) var<storage, read_write> wf_lens_rays: array<LensRay>;
 // Indirect dispatch arguments: the queued paths' (0–2), the shadow rays' (3–5); a group of its
 // own, bound to wf_args_main alone (a buffer may not be both written and read as arguments
 // by one dispatch).
@@ -79,38 +86,6 @@ fn wf_args_main() {
 }
 
 @compute @workgroup_size(64)
-fn wf_extend(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= atomicLoad(&wf_counts[0])) {
-        return;
-    }
-    let path = wf_queue_in[id.x];
-    let p = wf_paths[path];
-    wf_hits[path] = intersect(p.o, p.d, 3.0e38, false);
-    count_rays();
-}
-
-@compute @workgroup_size(64)
-fn wf_shade(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= atomicLoad(&wf_counts[0])) {
-        return;
-    }
-    let path = wf_queue_in[id.x];
-    var p = wf_paths[path];
-    seed_rng(p.pixel % P.width, p.pixel / P.width, p.sample, 0u);
-    rng_n = p.rng_n;
-    var sr = camera_hit(&p, wf_hits[path]);
-    p.rng_n = rng_n;
-    wf_paths[path] = p;
-    if ((p.flags & PATH_ALIVE) != 0u) {
-        wf_queue_out[atomicAdd(&wf_counts[1], 1u)] = path;
-    }
-    if (sr.on != 0u) {
-        sr.path = path;
-        wf_shadows[atomicAdd(&wf_counts[2], 1u)] = sr;
-    }
-}
-
-@compute @workgroup_size(64)
 fn wf_shadow(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= atomicLoad(&wf_counts[3])) {
         return;
@@ -143,4 +118,33 @@ fn wf_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     } else {
         squares[i].w = squares[i].w + 1.0;
     }
+}
+
+@compute @workgroup_size(8, 8)
+fn lw_start(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = wave_path(id);
+    if (!w.inside) {
+        return;
+    }
+    var p: LightPath;
+    let r = light_start(w.px, w.py, P.first_sample + w.k, &p);
+    p.rng_n = rng_n;
+    p.pixel = w.py * P.width + w.px;
+    p.sample = P.first_sample + w.k;
+    wf_light_paths[w.path] = p;
+    if ((p.flags & PATH_ALIVE) != 0u) {
+        wf_queue_out[atomicAdd(&wf_counts[1], 1u)] = w.path;
+    }
+    if (r.on != 0u) {
+        wf_lens_rays[atomicAdd(&wf_counts[2], 1u)] = r;
+    }
+}
+
+@compute @workgroup_size(64)
+fn lw_connect(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= atomicLoad(&wf_counts[3])) {
+        return;
+    }
+    lens_splat(wf_lens_rays[id.x]);
+    count_rays();
 }

@@ -139,21 +139,34 @@ fn the_traversal_does_not_change_the_image() {
     }
 }
 
-/// The wavefront camera pass (wavefront.wgsl) renders the megakernel's image: the same
-/// random numbers along the same walks, so the same seed gives the same image up to float
-/// order, with bounded depth, unbounded depth (Russian roulette; the host checks for live
-/// paths every 8 bounces) under the tent filter, with slices (several waves a dispatch) and
-/// with several tiles.
+/// The wavefront passes (wavefront.wgsl) render the megakernels' image: the same random
+/// numbers along the same walks, so the same seed gives the same image up to float order,
+/// with bounded depth, unbounded depth (Russian roulette; the host checks for live paths every
+/// 8 bounces) under the tent filter, with slices (several waves a dispatch) and with several
+/// tiles; the light pass with the light seen directly through a pinhole and a thin lens (the
+/// splats its first kernel makes: forgetting to trace them left c14 at depth 1 black).
 #[test]
 fn the_wavefront_renders_the_megakernels_image() {
-    let mut bounded = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 24, 16);
-    bounded.settings.max_depth = 4;
-    let mut unbounded = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 24, 16);
-    unbounded.settings.max_depth = -1;
+    let door = |depth: i32| {
+        let mut s = common::load_small(&shared_dir().join("scenes/veach-door/scene.xml"), 24, 16);
+        s.settings.max_depth = depth;
+        s
+    };
+    let bounded = door(4);
+    let mut unbounded = door(-1);
     unbounded.settings.rr_depth = 2;
     unbounded.settings.filter = skelight::film::Filter::Tent { radius: 1.0 };
-    for (scene, what) in [(&bounded, "depth 4"), (&unbounded, "unbounded, tent filter")] {
-        for estimator in [Estimator::Pt, Estimator::Ibpt] {
+    let conformance = |name: &str| common::load_small(&shared_dir().join("conformance/scenes").join(name), 24, 16);
+    let (cbox, thin_lens) = (conformance("c01_cbox_area.xml"), conformance("c14_thinlens.xml"));
+    let (pt, ibpt, lt) = (Estimator::Pt, Estimator::Ibpt, Estimator::Lt);
+    let cases = [
+        (&bounded, "veach-door, depth 4", vec![pt, ibpt]),
+        (&unbounded, "veach-door, unbounded, tent filter", vec![pt, ibpt]),
+        (&cbox, "c01", vec![lt]),
+        (&thin_lens, "c14, thin lens", vec![lt, ibpt]),
+    ];
+    for (scene, what, estimators) in cases {
+        for estimator in estimators {
             let Some(mut megakernel) = open_with(scene, estimator, Splats::Auto).unwrap() else { return };
             let a = render(&mut megakernel, scene, 8, 5).image();
             assert!(a.mean().r > 0.0, "a lit image");
