@@ -143,16 +143,16 @@ case "${1:-}" in
                 done
             done
         done
-        # 2c. The wavefront camera pass (wavefront.wgsl) against the table's megakernel, with the
-        # stackless and the hybrid traversal.
+        # 2c. The wavefront (wavefront.wgsl) against the table's megakernels: the camera pass
+        # alone (1; ibpt's light pass stays a megakernel) and both passes (2), with the stackless
+        # and the hybrid traversal.
         [[ $steps == *" wavefront "* ]] && for entry in "${SCENES[@]}"; do
             IFS=: read -r scene w h <<<"$entry"
-            for traversal in stackless hybrid; do
-                for estimator in pt ibpt; do
-                    SKELIGHT_GPU_WAVEFRONT=1 SKELIGHT_GPU_TRAVERSAL=$traversal one \
-                        "wavefront, $traversal: $scene $estimator $spp spp" 60 "$bin" bench render "$scene" \
-                        --device gpu -i "$estimator" --spp "$spp" --resolution $((w / r)) $((h / r))
-                done
+            for variant in 1:pt:stackless 1:ibpt:stackless 2:ibpt:stackless 1:pt:hybrid 1:ibpt:hybrid; do
+                IFS=: read -r wavefront estimator traversal <<<"$variant"
+                SKELIGHT_GPU_WAVEFRONT=$wavefront SKELIGHT_GPU_TRAVERSAL=$traversal one \
+                    "wavefront $wavefront, $traversal: $scene $estimator $spp spp" 60 "$bin" bench render "$scene" \
+                    --device gpu -i "$estimator" --spp "$spp" --resolution $((w / r)) $((h / r))
             done
         done
         # 3. Four renders for the CPU comparison here: pt and ibpt, seeds 1 and 2, 160×90.

@@ -37,15 +37,16 @@ const FUSED: bool = false;
 /// the ordered traversal fetches 2.0-2.4× fewer nodes per ray (counted on the CPU) and waits
 /// for a device to be timed against it.
 const TRAVERSAL: Traversal = Traversal::Stackless;
-/// Whether the camera pass runs as a wavefront (wavefront.wgsl): off, the megakernel being
-/// what was measured; the wavefront waits for a device to be timed against it.
-const WAVEFRONT: bool = false;
+/// Whether the camera pass runs as a wavefront (wavefront.wgsl), and the light pass too: off,
+/// the megakernels being what was measured; the wavefront waits for a device to be timed
+/// against them (on lavapipe it made pt 2.3-2.8x faster and ibpt's light pass slower).
+const WAVEFRONT: (bool, bool) = (false, false);
 
 /// The megakernels' launch shape. The defaults are the constants above; `bench/gpu_device.sh`
 /// sweeps them on a data-centre GPU through the environment (`SKELIGHT_GPU_TILE`,
 /// `SKELIGHT_GPU_SAMPLES_PER_DISPATCH`, `SKELIGHT_GPU_WORKGROUP` as `8x8`,
 /// `SKELIGHT_GPU_SLICES`, `SKELIGHT_GPU_FUSED` as 0 or 1, `SKELIGHT_GPU_TRAVERSAL` as
-/// `stackless`, `ordered` or `hybrid`, `SKELIGHT_GPU_WAVEFRONT` as 0 or 1), so the shape is chosen by
+/// `stackless`, `ordered` or `hybrid`, `SKELIGHT_GPU_WAVEFRONT` as 0, 1 for the camera pass or 2 for both), so the shape is chosen by
 /// measurement rather than by guess. The image does not depend on it: every (pixel, sample)
 /// draws the same random numbers whatever thread or dispatch takes it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -63,6 +64,8 @@ pub struct LaunchShape {
     /// The camera pass as a wavefront of kernels over queues of live paths (wavefront.wgsl)
     /// instead of one megakernel.
     pub wavefront: bool,
+    /// With `wavefront`, instant BPT's light pass as a wavefront too.
+    pub wavefront_light: bool,
 }
 
 impl LaunchShape {
@@ -120,11 +123,16 @@ impl LaunchShape {
                 GpuError::Invalid(format!("SKELIGHT_GPU_TRAVERSAL={v}: expected stackless, ordered or hybrid"))
             })?,
         };
-        let wavefront = match var("SKELIGHT_GPU_WAVEFRONT").as_deref() {
+        let (wavefront, wavefront_light) = match var("SKELIGHT_GPU_WAVEFRONT").as_deref() {
             None => WAVEFRONT,
-            Some("0") => false,
-            Some("1") => true,
-            Some(v) => return Err(GpuError::Invalid(format!("SKELIGHT_GPU_WAVEFRONT={v}: expected 0 or 1"))),
+            Some("0") => (false, false),
+            Some("1") => (true, false),
+            Some("2") => (true, true),
+            Some(v) => {
+                return Err(GpuError::Invalid(format!(
+                    "SKELIGHT_GPU_WAVEFRONT={v}: expected 0, 1 (the camera pass) or 2 (both passes)"
+                )))
+            }
         };
         Ok(LaunchShape {
             tile,
@@ -134,6 +142,7 @@ impl LaunchShape {
             fused,
             traversal,
             wavefront,
+            wavefront_light,
         })
     }
 
@@ -206,6 +215,7 @@ mod tests {
             fused: false,
             traversal: Traversal::Stackless,
             wavefront: false,
+            wavefront_light: false,
         };
         shape.fit(1000, 1000, 16 * 1000 * 3).unwrap();
         assert_eq!(shape.slices, 3);

@@ -457,9 +457,11 @@ impl GpuRenderer {
                         let (tw, th) = (tile.min(w - x0), tile.min(h - y0));
                         // Slices beyond the samples of the dispatch would have nothing to do.
                         let depth = slices.min(samples);
+                        let light_wavefront = light_pass && self.shape.wavefront_light;
                         if let Some(wavefront) = &self.wavefront {
-                            // Both passes in waves of `slices` samples per pixel.
-                            let passes: &[wavefront::Pass] = if light_pass {
+                            // The camera pass (and the light pass) in waves of `slices` samples
+                            // per pixel.
+                            let passes: &[wavefront::Pass] = if light_wavefront {
                                 &[wavefront::Pass::Camera, wavefront::Pass::Light]
                             } else {
                                 &[wavefront::Pass::Camera]
@@ -479,15 +481,19 @@ impl GpuRenderer {
                                     )?;
                                 }
                             }
-                            continue;
+                            if !light_pass || light_wavefront {
+                                continue;
+                            }
                         }
                         self.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&p));
                         let mut encoder = self.device.create_command_encoder(&Default::default());
                         {
                             let mut pass = encoder.begin_compute_pass(&Default::default());
                             pass.set_bind_group(0, &self.bind_group, &[]);
-                            pass.set_pipeline(&self.camera_pass);
-                            pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
+                            if self.wavefront.is_none() {
+                                pass.set_pipeline(&self.camera_pass);
+                                pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
+                            }
                             if light_pass {
                                 pass.set_pipeline(&self.light_pass);
                                 pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);

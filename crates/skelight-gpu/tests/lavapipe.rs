@@ -171,14 +171,22 @@ fn the_wavefront_renders_the_megakernels_image() {
             let a = render(&mut megakernel, scene, 8, 5).image();
             assert!(a.mean().r > 0.0, "a lit image");
             // One tile (24×16: rectangular path strides), and tiles of 16 pixels (16×16 and a
-            // partial 8×16 one, whose paths keep the full tile's strides).
-            for tile in [512, 16] {
+            // partial 8×16 one, whose paths keep the full tile's strides); the light pass as a
+            // wavefront, and as the megakernel after the camera's wavefront.
+            for (tile, light) in [(512, true), (16, true), (512, false)] {
+                if !light && estimator == Estimator::Pt {
+                    continue;
+                }
                 let mut wavefront = GpuRenderer::with_shape(scene, estimator, Splats::Auto, |s| {
-                    (s.wavefront, s.slices, s.samples_per_dispatch, s.tile) = (true, 2, 4, tile);
+                    (s.wavefront, s.wavefront_light, s.slices, s.samples_per_dispatch, s.tile) =
+                        (true, light, 2, 4, tile);
                 })
                 .unwrap();
                 let worst = worst_relative_difference(&a, &render(&mut wavefront, scene, 8, 5).image());
-                println!("{} {what}, tile {tile}: worst relative difference {worst:.2e}", estimator.name());
+                println!(
+                    "{} {what}, tile {tile}, light wavefront {light}: worst relative difference {worst:.2e}",
+                    estimator.name()
+                );
                 assert!(worst < 1e-6, "{} {what}: the wavefront changed the image ({worst})", estimator.name());
             }
         }
