@@ -135,13 +135,7 @@ pub(crate) fn bench_rays(scenes: &[std::path::PathBuf], n: usize, rounds: usize)
             ((n as f64 * aspect).sqrt().round() as usize).max(1),
             ((n as f64 / aspect).sqrt().round() as usize).max(1),
         );
-        let camera = scene.camera.with_resolution(w, h);
-        let primary: Vec<skelight::geometry::Ray> = (0..w * h)
-            .map(|i| {
-                let raster = skelight::math::vec2((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-                camera.generate_ray(raster, skelight::math::vec2(0.5, 0.5))
-            })
-            .collect();
+        let primary = crate::bench::pixel_centre_rays(&scene.camera.with_resolution(w, h));
         let sets = [("incoherent", crate::bench::incoherent_rays(&tris, n, 1)), ("primary", primary)];
         let mut adapter = String::new();
         for (set, rays) in &sets {

@@ -14,7 +14,7 @@ use skelight::color::{rgb, Rgb};
 use skelight::geometry::Ray;
 use skelight::imageio::Image;
 use skelight::integrator::skelpt::SkeletonPathTracer;
-use skelight::math::{vec2, vec3, Vec3};
+use skelight::math::{vec3, Vec3};
 use skelight::scene::{Scene, SurfaceInteraction};
 use skelight_shape::mapping::{surface_voxel, NodeMapping};
 use skelight_shape::pipeline::Analysis;
@@ -114,14 +114,7 @@ pub fn write_guidance(scene: &Scene, skelpt: &SkeletonPathTracer, dir: &Path) ->
 
 /// The first hit of a ray through every pixel's centre.
 fn primary_hits(scene: &Scene) -> Vec<Option<SurfaceInteraction>> {
-    let (w, h) = (scene.settings.width, scene.settings.height);
-    (0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            scene
-                .intersect(&scene.camera.generate_ray(vec2((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), vec2(0.5, 0.5)))
-        })
-        .collect()
+    crate::bench::pixel_centre_rays(&scene.camera).par_iter().map(|r| scene.intersect(r)).collect()
 }
 
 /// Surface points of the primary hits coloured by the label `label_of` gives them, shaded by

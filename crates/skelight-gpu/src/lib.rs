@@ -131,6 +131,14 @@ fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     })
 }
 
+/// Waits until the device has done all that was submitted.
+fn wait(device: &wgpu::Device) -> Result<(), GpuError> {
+    device
+        .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+        .map(|_| ())
+        .map_err(|e| GpuError::Readback(e.to_string()))
+}
+
 /// How the light pass's splats (and the tent filter's camera samples) are added to the film.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Splats {
@@ -302,7 +310,9 @@ impl GpuRenderer {
         let light_pass = pipeline("light_main", &[]);
         let wavefront = if shape.wavefront {
             let tile = (shape.tile.min(flat.params.width), shape.tile.min(flat.params.height));
-            Some(wavefront::Wavefront::new(&device, &layout, tile, shape.slices, &|l, e| pipeline_with(l, e, &[]))?)
+            let light = shape.wavefront_light && estimator != Estimator::Pt;
+            let pipeline = |l: &wgpu::PipelineLayout, e: &str| pipeline_with(l, e, &[]);
+            Some(wavefront::Wavefront::new(&device, &layout, tile, shape.slices, light, &pipeline)?)
         } else {
             None
         };
@@ -616,10 +626,7 @@ impl GpuRenderer {
 
     /// Waits until the device has done everything submitted.
     fn wait(&self) -> Result<(), GpuError> {
-        self.device
-            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
-            .map(|_| ())
-            .map_err(|e| GpuError::Readback(e.to_string()))
+        wait(&self.device)
     }
 
     /// Adds the accumulators of a batch of `spp` samples per pixel to `film` in f64.

@@ -77,20 +77,22 @@ pub(crate) struct Wavefront {
     counts_readback: wgpu::Buffer,
     /// The tile size the path buffers are laid out by.
     pub(crate) tile: (u32, u32),
-    /// Device memory per path in flight: the camera's and the light's states, a hit, a shadow
-    /// ray, a segment to the lens and two queue entries.
+    /// Device memory per path in flight: the camera's state, a hit, a shadow ray and two queue
+    /// entries; with the light pass, its state and a segment to the lens.
     pub(crate) bytes_per_path: u64,
 }
 
 impl Wavefront {
     /// Buffers for `tile.0` · `tile.1` · `slices` paths (at most [`MAX_PATHS`], and the
-    /// adapter's buffer size: LaunchShape::fit), and the kernels' pipelines over `scene_layout`
+    /// adapter's buffer size: LaunchShape::fit), for the light pass too when `light`, and the
+    /// kernels' pipelines over `scene_layout`
     /// (group 0) and the wavefront's group 1; `pipeline` builds one from a layout and entry.
     pub(crate) fn new(
         device: &wgpu::Device,
         scene_layout: &wgpu::BindGroupLayout,
         tile: (u32, u32),
         slices: u32,
+        light: bool,
         pipeline: &dyn Fn(&wgpu::PipelineLayout, &str) -> wgpu::ComputePipeline,
     ) -> Result<Wavefront, GpuError> {
         let paths = tile.0 as u64 * tile.1 as u64 * slices as u64;
@@ -105,8 +107,11 @@ impl Wavefront {
         let hits = buffer("wavefront hits", paths * HIT_BYTES, storage);
         let shadows = buffer("wavefront shadow rays", paths * SHADOW_BYTES, storage);
         let queues = [buffer("wavefront queue a", paths * 4, storage), buffer("wavefront queue b", paths * 4, storage)];
-        let light_state = buffer("wavefront light paths", paths * PATH_BYTES, storage);
-        let lens_rays = buffer("wavefront lens rays", paths * LENS_RAY_BYTES, storage);
+        // The light pass's walks and lens segments, only where it runs as a wavefront (else a
+        // token buffer, for the bind group).
+        let light_paths = if light { paths } else { 1 };
+        let light_state = buffer("wavefront light paths", light_paths * PATH_BYTES, storage);
+        let lens_rays = buffer("wavefront lens rays", light_paths * LENS_RAY_BYTES, storage);
         let counts =
             buffer("wavefront counts", 16, storage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST);
         let args_buffer = buffer("wavefront dispatch arguments", 24, storage | wgpu::BufferUsages::INDIRECT);
@@ -182,7 +187,11 @@ impl Wavefront {
             args_buffer,
             counts_readback,
             tile,
-            bytes_per_path: 2 * PATH_BYTES + HIT_BYTES + SHADOW_BYTES + LENS_RAY_BYTES + 8,
+            bytes_per_path: PATH_BYTES
+                + HIT_BYTES
+                + SHADOW_BYTES
+                + 8
+                + if light { PATH_BYTES + LENS_RAY_BYTES } else { 0 },
         })
     }
 
@@ -284,9 +293,7 @@ impl Wavefront {
     fn alive(&self, device: &wgpu::Device) -> Result<u32, GpuError> {
         let slice = self.counts_readback.slice(..);
         slice.map_async(wgpu::MapMode::Read, |_| {});
-        device
-            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        crate::wait(device)?;
         let alive = {
             let data = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
             bytemuck::cast_slice::<u8, u32>(&data)[0]
