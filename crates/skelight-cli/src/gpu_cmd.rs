@@ -12,42 +12,28 @@ pub(crate) fn render(args: &RenderArgs) -> Result<()> {
     let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
         bail!("--device gpu renders --integrator pt, ibpt or lt, not {name}");
     };
-    if !args.params.is_empty() {
+    if !args.params.is_empty() || args.heuristic.is_some() {
         bail!("--device gpu takes no estimator parameters (pt, ibpt and lt have none on the GPU)");
     }
-    if args.time.is_some() || args.shard.is_some() || args.debug_skeleton.is_some() {
-        bail!("--device gpu takes --spp (no --time, --shard or --debug-… yet)");
+    if args.debug_skeleton.is_some() || args.debug_strategies.is_some() || args.debug_distributions.is_some() {
+        bail!("--device gpu writes no --debug-… pictures (they belong to CPU estimators)");
     }
-    let mut scene = crate::load_scene(args.scene.as_deref(), &args.define)?;
-    args.setup.apply(&mut scene)?;
-    let spp = args.spp.unwrap_or(if args.scene.is_some() { scene.settings.spp } else { 16 });
-    if spp == 0 {
-        bail!("--spp must be at least 1");
-    }
-    let mut gpu = skelight_gpu::GpuRenderer::new(&scene, estimator)?;
+    // The CPU's job: it checks --spp, --time and --shard as for a CPU render, and names the
+    // render for a shard's manifest.
+    let spec = skelight::job::JobSpec {
+        integrator: name.into(),
+        spp: args.spp,
+        time: args.time,
+        seed: args.seed,
+        shard: args.shard,
+        ..Default::default()
+    };
+    let mut job = crate::render_cmd::Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
+    let mut gpu = skelight_gpu::GpuRenderer::new(&job.scene, estimator)?;
     eprintln!("GPU {}: {} (splats by {:?})", estimator.name(), gpu.adapter, gpu.splat_mode);
-    let start = std::time::Instant::now();
-    let mut film = skelight::film::Film::new(scene.settings.width, scene.settings.height, scene.settings.filter);
-    gpu.render_into(&mut film, args.seed, 0, spp, |done| {
-        if !args.quiet {
-            eprint!("\r{done}/{spp} spp");
-        }
-    })?;
-    let secs = start.elapsed().as_secs_f64();
-    if !args.quiet {
-        eprintln!();
-    }
-    let img = crate::write_outputs(&film, spp, &args.output, args.exposure)
-        .with_context(|| format!("writing {}", args.output.display()))?;
-    let samples = spp as f64 * (scene.settings.width * scene.settings.height) as f64;
-    eprintln!(
-        "done: {spp} spp in {secs:.2} s on the GPU ({:.2} Msamples/s), mean RGB {:.4} {:.4} {:.4} → {}",
-        samples / secs / 1e6,
-        img.mean().r,
-        img.mean().g,
-        img.mean().b,
-        args.output.display()
-    );
+    let r = job.run_with(args.quiet, |job, scene, on_pass| skelight_gpu::job::run(&mut gpu, scene, job, on_pass))?;
+    let img = r.save(&args.output, args.exposure).with_context(|| format!("writing {}", args.output.display()))?;
+    crate::render_cmd::summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
     Ok(())
 }
 

@@ -11,6 +11,7 @@
 
 pub mod bvh;
 pub mod flatten;
+pub mod job;
 mod launch;
 mod tables;
 mod wavefront;

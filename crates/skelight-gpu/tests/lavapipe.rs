@@ -47,6 +47,53 @@ fn worst_relative_difference(a: &Image, b: &Image) -> f32 {
     worst
 }
 
+/// `render --device gpu --shard K/N` and `--time` (skelight_gpu::job): the shards of a GPU
+/// render merge into the single render (up to the order of float sums), refuse to merge with a
+/// CPU shard, and a time budget renders sample indices from 0 as a sample count does.
+#[test]
+fn gpu_jobs_shard_and_stop_at_a_time_budget_as_cpu_jobs_do() {
+    use skelight::job::{Job, JobSpec};
+    use skelight::shard::{merge, Shard, ShardError};
+    let scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
+    let Some(mut gpu) = open(&scene, Estimator::Ibpt).unwrap() else { return };
+    let run = |gpu: &mut GpuRenderer, spp, time, shard, device_gpu: bool| {
+        let spec = JobSpec { integrator: "ibpt".into(), spp, time, seed: 3, shard, ..Default::default() };
+        let mut job = Job::new(&scene, "c01", &spec).unwrap();
+        if device_gpu {
+            skelight_gpu::job::run(gpu, &scene, &job, |_, _| Ok(())).unwrap()
+        } else {
+            job.run(&scene, None, |_, _| Ok(())).unwrap()
+        }
+    };
+    let whole = run(&mut gpu, Some(7), None, None, true);
+    let shards: Vec<_> = (0..3)
+        .map(|k| {
+            let r = run(&mut gpu, Some(7), None, Some(Shard::new(k, 3).unwrap()), true);
+            (format!("shard {k}"), r.shard_output().expect("a shard's output"))
+        })
+        .collect();
+    assert_eq!(shards.iter().map(|(_, s)| s.spp()).collect::<Vec<_>>(), [2, 2, 3]);
+    let merged = merge(shards.clone()).expect("the GPU's shards merge");
+    assert_eq!(merged.spp, 7);
+    let worst = worst_relative_difference(&merged.film.image(), &whole.film.image());
+    println!("3 GPU shards merged against the whole render: worst relative difference {worst:.2e}");
+    // f32 sums on the device over other groupings of the same samples.
+    assert!(worst < 1e-5, "the merged shards differ from the single render ({worst})");
+    // A CPU shard of the same render has other random numbers: never merged with the GPU's.
+    let cpu = run(&mut gpu, Some(7), None, Some(Shard::new(2, 3).unwrap()), false);
+    let mixed = vec![shards[0].clone(), shards[1].clone(), ("cpu shard 2".into(), cpu.shard_output().unwrap())];
+    assert!(matches!(merge(mixed), Err(ShardError::OtherRender { .. })), "a CPU shard merged with the GPU's");
+    // A time budget: whole batches from sample 0 until it is spent, the image of a sample
+    // count of as many.
+    let budget = std::time::Duration::from_millis(1500);
+    let timed = run(&mut gpu, None, Some(budget), None, true);
+    assert!(timed.elapsed >= budget && timed.spp() >= 1 && timed.samples.start == 0);
+    let counted = run(&mut gpu, Some(timed.spp()), None, None, true);
+    let worst = worst_relative_difference(&timed.film.image(), &counted.film.image());
+    println!("{} spp in a budget of {budget:?}: worst relative difference {worst:.2e} to --spp", timed.spp());
+    assert!(worst < 1e-5, "the timed render differs from the counted one ({worst})");
+}
+
 /// The launch shape (tiles, samples per dispatch, slices, the fused instant-BPT kernel,
 /// workgroup) changes which thread takes a (pixel, sample), never its random numbers: the
 /// same seed gives the same image up to the order of float sums. (It found tiles narrower

@@ -29,6 +29,9 @@ pub enum JobError {
     Image(#[from] ImageError),
     #[error("{0}")]
     Invalid(String),
+    /// The device the job ran on failed (a GPU: its adapter, kernels or readback).
+    #[error("{0}")]
+    Device(String),
     /// The caller stopped the render (Ctrl-C, a failed checkpoint write).
     #[error("{0}")]
     Stopped(String),

@@ -1,0 +1,103 @@
+//! A render job (skelight::job) run on the GPU: all its samples, one shard of them, or as many
+//! as its time budget allows, so that `render --device gpu` takes the CPU's `--spp`, `--time`
+//! and `--shard` with their meaning, and its shards merge (`skelight merge`).
+
+use std::time::{Duration, Instant};
+
+use skelight::film::Film;
+use skelight::integrator::{Preparation, Progress};
+use skelight::job::{Job, JobError, Rendered};
+use skelight::scene::Scene;
+use skelight::shard::Manifest;
+
+use crate::GpuRenderer;
+
+/// Work between two progress reports (and, under a time budget, the most it runs past it).
+const BATCH_TIME: Duration = Duration::from_millis(250);
+
+/// Samples per pixel in a batch: what the rate measured so far renders in `BATCH_TIME` (or in
+/// the time left), at least one. The first batch is one sample, which measures the rate.
+fn next_batch(done: u32, elapsed: Duration, left: Option<Duration>) -> u32 {
+    if done == 0 || elapsed.is_zero() {
+        return 1;
+    }
+    let span = left.map_or(BATCH_TIME, |l| l.min(BATCH_TIME));
+    let rate = done as f64 / elapsed.as_secs_f64();
+    (rate * span.as_secs_f64()).clamp(1.0, u32::MAX as f64) as u32
+}
+
+/// The key a GPU shard's manifest carries: the job's (scene, estimator, seed, size, depth,
+/// samples) and the device, so that GPU shards merge with each other and not with the CPU's
+/// (the GPU's random numbers and float sums are not the CPU's, and its `ibpt` leaves out a
+/// thin lens's t = 0 strategy).
+pub fn render_key(job: &Job, scene: &Scene) -> String {
+    format!("{}|device gpu", job.key(scene))
+}
+
+/// Renders `job` on `gpu` (bound to `scene` and the job's estimator): sample indices
+/// 0..spp, the shard's slice of them, or, under a time budget, from 0 until the budget is
+/// spent (at most `spp` when given too); the last batch may run up to a quarter of a second
+/// past the budget. `on_pass` sees the progress and the film after each batch; its error
+/// stops the render and is returned.
+pub fn run(
+    gpu: &mut GpuRenderer,
+    scene: &Scene,
+    job: &Job,
+    mut on_pass: impl FnMut(&Progress, &Film) -> Result<(), JobError>,
+) -> Result<Rendered, JobError> {
+    let (spp, time) = (job.opts.spp, job.opts.time);
+    let samples = match (job.shard, spp) {
+        (Some(shard), Some(spp)) => shard.samples(spp)?,
+        (None, Some(spp)) => 0..spp,
+        (None, None) if time.is_some() => 0..u32::MAX,
+        _ => return Err(JobError::Invalid("give a sample count (a shard needs one) or a time budget".into())),
+    };
+    let s = &scene.settings;
+    let mut film = Film::new(s.width, s.height, s.filter);
+    let pixels = (s.width * s.height) as f64;
+    let start = Instant::now();
+    let mut done = 0u32;
+    while samples.start + done < samples.end {
+        let elapsed = start.elapsed();
+        let left = time.map(|t| t.saturating_sub(elapsed));
+        if left.is_some_and(|l| l.is_zero()) {
+            break;
+        }
+        let n = next_batch(done, elapsed, left).min(samples.end - samples.start - done);
+        gpu.render_into(&mut film, job.opts.seed, samples.start + done, n, |_| {})
+            .map_err(|e| JobError::Device(e.to_string()))?;
+        done += n;
+        let elapsed = start.elapsed();
+        let progress = Progress {
+            spp_done: done,
+            spp_target: spp.map(|_| samples.len() as u32),
+            elapsed,
+            time_budget: time,
+            samples_per_second: done as f64 * pixels / elapsed.as_secs_f64().max(1e-9),
+        };
+        on_pass(&progress, &film)?;
+    }
+    let manifest = job.shard.map(|shard| Manifest { render: render_key(job, scene), shard, samples: samples.clone() });
+    Ok(Rendered {
+        film,
+        samples: samples.start..samples.start + done,
+        elapsed: start.elapsed(),
+        preparation: Preparation::default(),
+        manifest,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn batches_fill_a_quarter_second_or_the_time_left() {
+        assert_eq!(next_batch(0, Duration::ZERO, None), 1);
+        // 100 samples in a second: 25 in a quarter, 10 in the 0.1 s left.
+        assert_eq!(next_batch(100, Duration::from_secs(1), None), 25);
+        assert_eq!(next_batch(100, Duration::from_secs(1), Some(Duration::from_millis(100))), 10);
+        // Slow renders still take a sample per batch.
+        assert_eq!(next_batch(1, Duration::from_secs(60), None), 1);
+    }
+}
