@@ -4,7 +4,7 @@
 # veach-ajar, against CPU ibpt on this machine's 2 cores at the same settings.
 #
 #   bench/gpu_device.sh prepare    here: builds the CLI with the GPU feature, strips it, and
-#                                  packs it and the three scenes into .device/bundle.tar.xz
+#                                  packs it and the four scenes into .device/bundle.tar.xz
 #                                  (10 MB: the working tree and what is carried travel within
 #                                  64 MiB), the Vulkan loader into .gl/ (both git-ignored
 #                                  through .git/info/exclude)
@@ -31,6 +31,12 @@ SCENES=(
     ".device/shared/scenes/veach-door/scene.xml:512:288"
     ".device/shared/scenes/veach-ajar/scene.xml:512:288"
 )
+# The traversal alone (`rays`) on these and on Dabrovic's Sponza (82 573 triangles), the
+# nearest to the Crytek Sponza of the published compute-shader figure (TinyBVH).
+RAY_SCENES=(
+    "${SCENES[@]}"
+    ".device/shared/scenes/sponza-dabrovic/sponza.xml:0:0"
+)
 
 run_all() {
     local bin=$1 device=$2 spp=$3 out=$4
@@ -52,7 +58,7 @@ case "${1:-}" in
         mkdir -p "$stage/a/b" "$stage/shared/scenes"
         cp target/release/skelight "$stage/skelight"
         strip "$stage/skelight"
-        for s in sibenik veach-door veach-ajar; do
+        for s in sibenik veach-door veach-ajar sponza-dabrovic; do
             cp -r "../shared/scenes/$s" "$stage/shared/scenes/"
         done
         # No reference images: they are not needed there.
@@ -199,7 +205,7 @@ case "${1:-}" in
             -o "$out/door_ibpt_1_fused.exr" && rm -f "$out/door_ibpt_1_fused.png"
         # 6. Rays per second of the traversal alone (no shading), both traversals: the CPU's
         # incoherent rays and primary rays, with the work per ray and the rays whose hits differ.
-        [[ $steps == *" rays "* ]] && for entry in "${SCENES[@]}"; do
+        [[ $steps == *" rays "* ]] && for entry in "${RAY_SCENES[@]}"; do
             IFS=: read -r scene _ _ <<<"$entry"
             one "rays: $scene" 60 "$bin" bench rays "$scene" --device gpu --rays $((4000000 / r / r)) --rounds 5
         done
@@ -225,7 +231,7 @@ case "${1:-}" in
         [ -x .device/skelight ] || tar -C .device -xJf .device/bundle.tar.xz
         THREADS=(--threads 2)
         run_all .device/skelight cpu "${SPP:-4}" "$out" ibpt pt
-        for entry in "${SCENES[@]}"; do
+        for entry in "${RAY_SCENES[@]}"; do
             IFS=: read -r scene _ _ <<<"$entry"
             .device/skelight bench rays "$scene" --rays 4000000 --rounds 3 --threads 2 | tee -a "$out"
         done
