@@ -151,7 +151,7 @@ fn param_pairs(params: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<(String, Stri
 /// The key a render of `scene` with these settings would carry (`Render.key`): what
 /// `merge` and resumed references compare, to refuse shards of another render.
 #[pyfunction]
-#[pyo3(signature = (scene, integrator = "pt", spp = None, seed = 0, params = None, shard = None))]
+#[pyo3(signature = (scene, integrator = "pt", spp = None, seed = 0, params = None, shard = None, device = "cpu"))]
 pub fn render_key(
     scene: &Scene,
     integrator: &str,
@@ -159,7 +159,9 @@ pub fn render_key(
     seed: u64,
     params: Option<&Bound<'_, PyDict>>,
     shard: Option<(u32, u32)>,
+    device: &str,
 ) -> PyResult<String> {
+    let on_gpu = gpu_estimator(device, integrator, params)?.is_some();
     let shard = shard.map(|(k, n)| Shard::new(k, n)).transpose().map_err(error)?;
     let spec = JobSpec {
         integrator: integrator.to_string(),
@@ -171,7 +173,29 @@ pub fn render_key(
     };
     let s = scene.read();
     let job = Job::new(&s, scene.label(), &spec).map_err(error)?;
-    Ok(job.key(&s))
+    Ok(if on_gpu { skelight_gpu::job::render_key(&job, &s) } else { job.key(&s) })
+}
+
+/// For `device = "gpu"`, the GPU's estimator (pt, ibpt or lt, without parameters); `None` for
+/// the CPU; an error for another device.
+fn gpu_estimator(
+    device: &str,
+    integrator: &str,
+    params: Option<&Bound<'_, PyDict>>,
+) -> PyResult<Option<skelight_gpu::Estimator>> {
+    match device {
+        "cpu" => Ok(None),
+        "gpu" => {
+            let name = skelight::integrator::registry::find(integrator).map_err(error)?.name;
+            let estimator = skelight_gpu::Estimator::from_name(name)
+                .ok_or_else(|| error(format!("device = 'gpu' renders pt, ibpt or lt, not {name}")))?;
+            if params.is_some_and(|p| !p.is_empty()) {
+                return Err(error("device = 'gpu' takes no estimator parameters (pt, ibpt and lt have none there)"));
+            }
+            Ok(Some(estimator))
+        }
+        other => Err(error(format!("device = '{other}': give 'cpu' or 'gpu'"))),
+    }
 }
 
 /// Renders `scene` with an estimator of the registry (`skelight.integrators()` lists them
@@ -181,9 +205,11 @@ pub fn render_key(
 /// samples_per_second); an exception it raises stops the render and propagates. The GIL
 /// is released while rendering; Ctrl-C stops the render (KeyboardInterrupt) within a pass.
 /// The render's key names the scene by its content, not its path, so shards rendered from
-/// copies of one file at different paths merge.
+/// copies of one file at different paths merge. `device = "gpu"` renders pt, ibpt or lt on the
+/// first Vulkan adapter (skelight_gpu; `threads` unused): the same samples, shards and time
+/// budget, its key naming the device (GPU shards merge with GPU shards only).
 #[pyfunction]
-#[pyo3(signature = (scene, integrator = "pt", spp = None, time = None, seed = 0, params = None, shard = None, threads = 0, progress = None))]
+#[pyo3(signature = (scene, integrator = "pt", spp = None, time = None, seed = 0, params = None, shard = None, threads = 0, progress = None, device = "cpu"))]
 #[allow(clippy::too_many_arguments)]
 pub fn render(
     py: Python<'_>,
@@ -196,7 +222,9 @@ pub fn render(
     shard: Option<(u32, u32)>,
     threads: usize,
     progress: Option<PyObject>,
+    device: &str,
 ) -> PyResult<Render> {
+    let on_gpu = gpu_estimator(device, integrator, params)?;
     let pairs = param_pairs(params)?;
     let time = match time {
         Some(t) if !(t > 0.0 && t.is_finite() && t < 1e9) => {
@@ -213,7 +241,7 @@ pub fn render(
     let result = py.allow_threads(|| {
         let scene = scene_lock.read().unwrap_or_else(|e| e.into_inner());
         let mut job = Job::new(&scene, label, &spec)?;
-        let rendered = job.run(&scene, None, |p, _| {
+        let on_pass = |p: &skelight::integrator::Progress, _: &Film| {
             Python::with_gil(|py| {
                 let outcome = py.check_signals().and_then(|()| match &progress {
                     Some(f) => {
@@ -232,8 +260,16 @@ pub fn render(
                     JobError::Stopped(message.into())
                 })
             })
-        })?;
-        let key = job.key(&scene);
+        };
+        let (rendered, key) = match on_gpu {
+            // On the GPU (skelight_gpu::job): the same job, its shard's samples or time budget.
+            Some(estimator) => {
+                let mut gpu =
+                    skelight_gpu::GpuRenderer::new(&scene, estimator).map_err(|e| JobError::Device(e.to_string()))?;
+                (skelight_gpu::job::run(&mut gpu, &scene, &job, on_pass)?, skelight_gpu::job::render_key(&job, &scene))
+            }
+            None => (job.run(&scene, None, on_pass)?, job.key(&scene)),
+        };
         Ok::<_, JobError>((rendered, key))
     });
     if let Some(e) = raised {

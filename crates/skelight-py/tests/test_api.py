@@ -2,6 +2,7 @@
 shards that merge into the single render."""
 
 import _thread
+import os
 import pickle
 import signal
 import subprocess
@@ -101,6 +102,40 @@ def test_shard_keys_tell_renders_apart(c01):
     c = skelight.render(other, integrator="bpt", spp=4, shard=(1, 2))
     with pytest.raises(skelight.SkelightError, match="not a shard of"):
         skelight.merge([a[0], c])
+
+
+def gpu_render(scene, **kwargs):
+    """skelight.render on the GPU, or a skip when the machine has no Vulkan adapter and none
+    is required (SKELIGHT_REQUIRE_GPU=1, set by scripts/test.sh where it has Vulkan)."""
+    try:
+        return skelight.render(scene, device="gpu", **kwargs)
+    except skelight.SkelightError as e:
+        if "no usable GPU adapter" in str(e) and os.environ.get("SKELIGHT_REQUIRE_GPU") != "1":
+            pytest.skip(f"no Vulkan adapter: {e}")
+        raise
+
+
+def test_gpu_device_shards_and_time_budget(c01):
+    """device="gpu": its shards merge into its single render (float32 sums on the device,
+    grouped otherwise: within 1e-5), its key names the device so a CPU shard never joins
+    them, and a time budget renders whole batches from sample 0."""
+    scene = small(c01, 24, 24)
+    whole = gpu_render(scene, integrator="ibpt", spp=6, seed=2)
+    parts = [gpu_render(scene, integrator="ibpt", spp=6, seed=2, shard=(k, 3)) for k in range(3)]
+    np.testing.assert_allclose(np.asarray(skelight.merge(parts)), np.asarray(whole), rtol=1e-5, atol=1e-7)
+    assert parts[0].key == skelight.render_key(scene, integrator="ibpt", spp=6, seed=2, shard=(0, 3), device="gpu")
+    assert parts[0].key.endswith("|device gpu")
+    cpu = skelight.render(scene, integrator="ibpt", spp=6, seed=2, shard=(2, 3))
+    with pytest.raises(skelight.SkelightError, match="not a shard of"):
+        skelight.merge([parts[0], parts[1], cpu])
+    timed = gpu_render(scene, integrator="pt", time=0.5)
+    assert timed.spp >= 1 and timed.seconds >= 0.5
+    with pytest.raises(skelight.SkelightError, match="renders pt, ibpt or lt, not bpt"):
+        skelight.render(scene, integrator="bpt", spp=1, device="gpu")
+    with pytest.raises(skelight.SkelightError, match="no estimator parameters"):
+        skelight.render(scene, integrator="pt", spp=1, device="gpu", params={"rr_depth": 3})
+    with pytest.raises(skelight.SkelightError, match="give 'cpu' or 'gpu'"):
+        skelight.render(scene, spp=1, device="tpu")
 
 
 def test_learning_estimators_refuse_shards(c01):

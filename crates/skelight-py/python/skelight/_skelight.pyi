@@ -55,6 +55,7 @@ def render(
     shard: Optional[Tuple[int, int]] = None,
     threads: int = 0,
     progress: Optional[Callable[[Dict[str, Any]], None]] = None,
+    device: str = "cpu",
 ) -> Render: ...
 def render_key(
     scene: Scene,
@@ -63,6 +64,7 @@ def render_key(
     seed: int = 0,
     params: Optional[Dict[str, Any]] = None,
     shard: Optional[Tuple[int, int]] = None,
+    device: str = "cpu",
 ) -> str: ...
 def merge(parts: Sequence[Union[Render, str, PathLike[str]]]) -> Render: ...
 def load_image(path: Union[str, PathLike[str]]) -> npt.NDArray[np.float32]: ...

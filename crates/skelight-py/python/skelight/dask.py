@@ -62,8 +62,10 @@ def render_shard(
     defines: Optional[Dict[str, Any]] = None,
     threads: int = 0,
     scene_bytes: Optional[bytes] = None,
+    device: str = "cpu",
 ) -> skelight.Render:
-    """Renders shard ``index`` of ``count`` (what each Dask task runs)."""
+    """Renders shard ``index`` of ``count`` (what each Dask task runs) on the worker's CPU or,
+    with ``device="gpu"``, its first Vulkan adapter."""
     scene = skelight.load_file(_scene_on_worker(scene_path, scene_bytes), **(defines or {}))
     if resolution is not None:
         scene.set_resolution(*resolution)
@@ -77,6 +79,7 @@ def render_shard(
         params=params,
         shard=(index, count),
         threads=threads,
+        device=device,
     )
 
 
@@ -148,15 +151,18 @@ def render(
     ship: bool = False,
     retries: int = 2,
     progress: Optional[Callable[[int, int], None]] = None,
+    device: str = "cpu",
 ) -> skelight.Render:
     """Renders ``scene_path`` with ``spp`` samples per pixel in ``shards`` Dask tasks and
     returns the merged ``skelight.Render``. ``threads`` is each task's thread count (0: all
     the worker's cores; give 1 with several single-threaded workers per machine); ``ship``
     sends the scene file's bytes with each task; ``retries`` is how often Dask reruns a task
-    that raised; ``progress(done, shards)`` is called as shards finish."""
+    that raised; ``progress(done, shards)`` is called as shards finish. ``device="gpu"``
+    renders every shard on its worker's GPU (pt, ibpt or lt; all shards of one render on one
+    kind of device, whose random numbers they share)."""
     return _run(scene_path, client, spp, shards, {}, progress=progress, ship=ship, retries=retries, seed=seed,
                 integrator=integrator, params=params, resolution=resolution, max_depth=max_depth, defines=defines,
-                threads=threads)
+                threads=threads, device=device)
 
 
 def reference(scene_path: str, client: Any, output: str, spp: int, shards: int, integrator: str = "bpt",
@@ -178,7 +184,8 @@ def reference(scene_path: str, client: Any, output: str, spp: int, shards: int, 
         if options.get("max_depth") is not None:
             scene.max_depth = options["max_depth"]
         expected = skelight.render_key(scene, integrator=integrator, spp=spp, seed=options.get("seed", 0),
-                                       params=options.get("params"), shard=(0, shards))
+                                       params=options.get("params"), shard=(0, shards),
+                                       device=options.get("device", "cpu"))
         stale = [k for k, r in done.items() if r.key != expected]
         if stale:
             raise skelight.SkelightError(
