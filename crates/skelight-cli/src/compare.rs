@@ -11,7 +11,7 @@ use skelight::color::{rgb, Rgb};
 use skelight::eval;
 use skelight::imageio::Image;
 
-pub use skelight::compare::{metric, run, time_to_error, Point, Series};
+pub use skelight::compare::{metric, run_with, time_to_error, Point, Series};
 
 pub struct Study {
     pub scene_label: String,

@@ -185,6 +185,25 @@ pub(crate) fn bench_rays(_: &[std::path::PathBuf], _: usize, _: usize) -> Result
     bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu")
 }
 
+/// `compare`'s `gpu:NAME` estimators (skelight_gpu::job::compare_external).
+#[cfg(feature = "gpu")]
+pub(crate) use skelight_gpu::job::compare_external;
+
+/// `compare`'s `gpu:NAME` estimators: refused by a build without the GPU.
+#[cfg(not(feature = "gpu"))]
+pub(crate) fn compare_external(
+    name: &str,
+    _: &skelight::scene::Scene,
+    _: &skelight::integrator::RenderOptions,
+    _: &mut dyn FnMut(&skelight::integrator::Progress, &skelight::film::Film) -> bool,
+) -> Option<Result<skelight::integrator::RenderResult, skelight::job::JobError>> {
+    name.starts_with("gpu:").then(|| {
+        Err(skelight::job::JobError::Invalid(format!(
+            "{name}: this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu"
+        )))
+    })
+}
+
 #[cfg(not(feature = "gpu"))]
 pub(crate) fn render(_: &RenderArgs) -> Result<()> {
     bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu")

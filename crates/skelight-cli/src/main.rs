@@ -125,7 +125,9 @@ struct CompareArgs {
     #[arg(long)]
     reference: PathBuf,
     /// Estimators, comma-separated, each with its parameters as NAME:PARAM=VALUE:… (e.g.
-    /// pt,skelpt:strength=16); speed-ups are relative to the first.
+    /// pt,skelpt:strength=16); speed-ups are relative to the first. gpu:pt, gpu:ibpt and
+    /// gpu:lt run on the GPU (a build with `--features gpu`), timed from when its kernels are
+    /// ready.
     #[arg(long, value_delimiter = ',', default_value = "pt")]
     integrators: Vec<String>,
     /// Wall time per estimator (300, 90s, 5m, 2h).
@@ -484,8 +486,13 @@ fn compare_cmd(a: CompareArgs) -> Result<()> {
     }
     let opts = RenderOptions { spp: None, time: Some(a.time), seed: a.seed, threads: a.setup.threads };
     let mut current = String::new();
-    let series =
-        compare::run(&scene, &a.integrators, &reference, &opts, a.every.unwrap_or(Duration::ZERO), |name, p| {
+    let series = compare::run_with(
+        &scene,
+        &a.integrators,
+        &reference,
+        &opts,
+        a.every.unwrap_or(Duration::ZERO),
+        |name, p| {
             if a.quiet {
                 return;
             }
@@ -496,7 +503,9 @@ fn compare_cmd(a: CompareArgs) -> Result<()> {
                 current = name.to_string();
             }
             eprint!("\r{name}: {:.1}/{:.0} s, {} spp   ", p.elapsed.as_secs_f64(), a.time.as_secs_f64(), p.spp_done);
-        })?;
+        },
+        &mut gpu_cmd::compare_external,
+    )?;
     if !a.quiet {
         eprintln!();
     }

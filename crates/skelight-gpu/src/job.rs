@@ -1,16 +1,17 @@
 //! A render job (skelight::job) run on the GPU: all its samples, one shard of them, or as many
 //! as its time budget allows, so that `render --device gpu` takes the CPU's `--spp`, `--time`
-//! and `--shard` with their meaning, and its shards merge (`skelight merge`).
+//! and `--shard` with their meaning, and its shards merge (`skelight merge`); and `compare`'s
+//! `gpu:NAME` estimators, run for the comparison's time budget.
 
 use std::time::{Duration, Instant};
 
 use skelight::film::Film;
-use skelight::integrator::{Preparation, Progress};
-use skelight::job::{Job, JobError, Rendered};
+use skelight::integrator::{registry, Preparation, Progress, RenderOptions, RenderResult};
+use skelight::job::{Job, JobError, JobSpec, Rendered};
 use skelight::scene::Scene;
 use skelight::shard::Manifest;
 
-use crate::GpuRenderer;
+use crate::{Estimator, GpuRenderer};
 
 /// Work between two progress reports (and, under a time budget, the most it runs past it).
 const BATCH_TIME: Duration = Duration::from_millis(250);
@@ -85,6 +86,42 @@ pub fn run(
         preparation: Preparation::default(),
         manifest,
     })
+}
+
+/// The renderer of `compare`'s `gpu:NAME` (pt, ibpt or lt) for the comparison's time budget
+/// (skelight::compare::External), from the moment its kernels are ready: the setup
+/// (flattening, upload, kernel compilation) is a renderer's start, not its estimator's work,
+/// and is not counted. `None` for other names.
+pub fn compare_external(
+    name: &str,
+    scene: &Scene,
+    opts: &RenderOptions,
+    on_pass: &mut dyn FnMut(&Progress, &Film) -> bool,
+) -> Option<Result<RenderResult, JobError>> {
+    let spec = name.strip_prefix("gpu:")?;
+    let mut render = || {
+        let (estimator, params) = registry::parse_spec(spec)?;
+        let found = registry::find(&estimator)?.name;
+        let Some(estimator) = Estimator::from_name(found) else {
+            return Err(JobError::Invalid(format!("{name}: the GPU renders pt, ibpt or lt, not {found}")));
+        };
+        if !params.is_empty() {
+            return Err(JobError::Invalid(format!("{name}: the GPU's estimators take no parameters")));
+        }
+        let job_spec =
+            JobSpec { integrator: found.into(), spp: opts.spp, time: opts.time, seed: opts.seed, ..Default::default() };
+        let job = Job::new(scene, name, &job_spec)?;
+        let mut gpu = GpuRenderer::new(scene, estimator).map_err(|e| JobError::Device(e.to_string()))?;
+        let r = run(&mut gpu, scene, &job, |p, film| {
+            if on_pass(p, film) {
+                Ok(())
+            } else {
+                Err(JobError::Stopped(format!("{name} stopped")))
+            }
+        })?;
+        Ok(RenderResult { spp: r.spp(), film: r.film, elapsed: r.elapsed, preparation: r.preparation })
+    };
+    Some(render())
 }
 
 #[cfg(test)]

@@ -94,6 +94,38 @@ fn gpu_jobs_shard_and_stop_at_a_time_budget_as_cpu_jobs_do() {
     assert!(worst < 1e-5, "the timed render differs from the counted one ({worst})");
 }
 
+/// `compare`'s `gpu:NAME` estimators: run for the time budget beside the CPU's, their curve
+/// measured on the GPU's film, their final image the GPU render of as many samples.
+#[test]
+fn compare_runs_gpu_estimators_beside_the_cpus() {
+    use skelight::compare::run_with;
+    use skelight::integrator::RenderOptions;
+    use skelight_gpu::job::compare_external;
+    let scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
+    let Some(mut gpu) = open(&scene, Estimator::Ibpt).unwrap() else { return };
+    let (mut bpt, _) = skelight::integrator::registry::create_for_scene("bpt", &scene.settings, &[]).unwrap();
+    let reference = render_spp(&scene, bpt.as_mut(), 64, 1).image();
+    let budget = std::time::Duration::from_millis(800);
+    let opts = RenderOptions { spp: None, time: Some(budget), seed: 4, threads: 0 };
+    let names = ["gpu:ibpt".to_string(), "pt".to_string()];
+    let every = std::time::Duration::ZERO;
+    let series = run_with(&scene, &names, &reference, &opts, every, |_, _| {}, &mut compare_external).unwrap();
+    assert_eq!(series.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(), ["gpu:ibpt", "pt"]);
+    let g = &series[0];
+    let last = g.points.last().unwrap();
+    assert!(g.points.windows(2).all(|w| w[1].spp > w[0].spp) && last.seconds >= budget.as_secs_f64());
+    let same = render(&mut gpu, &scene, last.spp, 4).image();
+    let worst = worst_relative_difference(&g.image, &same);
+    println!(
+        "gpu:ibpt {} spp in {:.2} s, relMSE {:.3e}; against a render of as many: {worst:.2e}",
+        last.spp, last.seconds, last.metrics.relmse
+    );
+    assert!(worst < 1e-5, "compare's GPU image is not the GPU render of its samples ({worst})");
+    let refused =
+        |name: &str| run_with(&scene, &[name.into()], &reference, &opts, every, |_, _| {}, &mut compare_external);
+    assert!(refused("gpu:bpt").is_err() && refused("gpu:ibpt:rr_depth=2").is_err());
+}
+
 /// The launch shape (tiles, samples per dispatch, slices, the fused instant-BPT kernel,
 /// workgroup) changes which thread takes a (pixel, sample), never its random numbers: the
 /// same seed gives the same image up to the order of float sums. (It found tiles narrower

@@ -13,7 +13,8 @@ use skelight::integrator::RenderOptions;
 use crate::scene::Scene;
 use crate::{error, LoadError};
 
-/// Runs each estimator (`"name"` or `"name:param=value:…"`) on `scene` for `time` seconds
+/// Runs each estimator (`"name"` or `"name:param=value:…"`; `"gpu:pt"`, `"gpu:ibpt"` and
+/// `"gpu:lt"` on the GPU, timed from when its kernels are ready) on `scene` for `time` seconds
 /// and measures its error against `reference` (an EXR path or a float (H, W, 3) array)
 /// after every pass, at most once per `every` seconds. Returns {name: {"seconds", "spp",
 /// "mae", "rmse", "relmse" (arrays, one entry per measurement), "image", "preparation"}}.
@@ -58,7 +59,15 @@ pub fn compare<'py>(
     let series = py
         .allow_threads(|| {
             let scene = lock.read().unwrap_or_else(|e| e.into_inner());
-            skelight::compare::run(&scene, &integrators, &reference, &opts, Duration::from_secs_f64(every), |_, _| {})
+            skelight::compare::run_with(
+                &scene,
+                &integrators,
+                &reference,
+                &opts,
+                Duration::from_secs_f64(every),
+                |_, _| {},
+                &mut skelight_gpu::job::compare_external,
+            )
         })
         .map_err(error)?;
     let out = PyDict::new(py);

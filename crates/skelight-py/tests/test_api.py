@@ -130,6 +130,8 @@ def test_gpu_device_shards_and_time_budget(c01):
         skelight.merge([parts[0], parts[1], cpu])
     timed = gpu_render(scene, integrator="pt", time=0.5)
     assert timed.spp >= 1 and timed.seconds >= 0.5
+    curves = skelight.compare(scene, np.asarray(whole), ["gpu:ibpt", "pt"], time=0.3)
+    assert list(curves) == ["gpu:ibpt", "pt"] and np.all(np.diff(curves["gpu:ibpt"]["spp"]) > 0)
     with pytest.raises(skelight.SkelightError, match="renders pt, ibpt or lt, not bpt"):
         skelight.render(scene, integrator="bpt", spp=1, device="gpu")
     with pytest.raises(skelight.SkelightError, match="no estimator parameters"):

@@ -5,8 +5,9 @@
 use std::time::Duration;
 
 use crate::eval::{self, Metrics};
+use crate::film::Film;
 use crate::imageio::Image;
-use crate::integrator::{self, Progress, RenderOptions};
+use crate::integrator::{self, Progress, RenderOptions, RenderResult};
 use crate::job::JobError;
 use crate::scene::Scene;
 
@@ -28,6 +29,17 @@ pub struct Series {
     pub preparation: f64,
 }
 
+/// A renderer outside this crate for the names it knows (the GPU's `gpu:NAME`): given a
+/// name, the options (a time budget) and the callback to call after every pass (false: stop),
+/// `Some` of its finished render, or `None` for a name it does not know (rendered here).
+pub type External<'a> = dyn FnMut(
+        &str,
+        &Scene,
+        &RenderOptions,
+        &mut dyn FnMut(&Progress, &Film) -> bool,
+    ) -> Option<Result<RenderResult, JobError>>
+    + 'a;
+
 /// Runs each estimator (`name` or `name:param=value:…`) in turn for `base.time`, measuring
 /// the error against `reference` after every pass (at most once per `every`); `on_pass`
 /// sees each estimator's progress.
@@ -37,7 +49,20 @@ pub fn run(
     reference: &Image,
     base: &RenderOptions,
     every: Duration,
+    on_pass: impl FnMut(&str, &Progress),
+) -> Result<Vec<Series>, JobError> {
+    run_with(scene, names, reference, base, every, on_pass, &mut |_, _, _, _| None)
+}
+
+/// [`run`], the names `external` knows rendered by it.
+pub fn run_with(
+    scene: &Scene,
+    names: &[String],
+    reference: &Image,
+    base: &RenderOptions,
+    every: Duration,
     mut on_pass: impl FnMut(&str, &Progress),
+    external: &mut External,
 ) -> Result<Vec<Series>, JobError> {
     let time = base.time.ok_or_else(|| JobError::Invalid("a comparison needs a time budget".into()))?;
     eval::metrics(reference, reference).map_err(|_| JobError::Invalid("the reference has no pixels".into()))?;
@@ -49,15 +74,13 @@ pub fn run(
     }
     let mut out: Vec<Series> = Vec::new();
     for name in names {
-        let (estimator, params) = integrator::registry::parse_spec(name)?;
-        let mut integ = integrator::registry::create(&estimator, &params)?;
         // The same estimator twice (e.g. to see run-to-run spread) gets distinct names.
         let repeats = out.iter().filter(|s| s.name == *name || s.name.starts_with(&format!("{name}#"))).count();
         let label = if repeats == 0 { name.clone() } else { format!("{name}#{}", repeats + 1) };
         let opts = RenderOptions { spp: None, time: Some(time), ..base.clone() };
         let mut points = Vec::new();
         let mut last: Option<f64> = None;
-        let r = integrator::render(scene, integ.as_mut(), &opts, None, |p, film| {
+        let mut measure = |p: &Progress, film: &Film| {
             let t = p.elapsed.as_secs_f64();
             if last.is_none_or(|l| t - l >= every.as_secs_f64()) {
                 let metrics = eval::metrics(&film.image(), reference).expect("sizes checked above");
@@ -66,7 +89,15 @@ pub fn run(
             }
             on_pass(name, p);
             true
-        })?;
+        };
+        let r = match external(name, scene, &opts, &mut measure) {
+            Some(r) => r?,
+            None => {
+                let (estimator, params) = integrator::registry::parse_spec(name)?;
+                let mut integ = integrator::registry::create(&estimator, &params)?;
+                integrator::render(scene, integ.as_mut(), &opts, None, &mut measure)?
+            }
+        };
         let image = r.film.image();
         let metrics = eval::metrics(&image, reference).expect("sizes checked above");
         if points.last().is_none_or(|p| p.spp != r.spp) {
