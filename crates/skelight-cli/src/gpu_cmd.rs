@@ -1,5 +1,6 @@
-//! `render --device gpu`: `pt`, `ibpt` or `lt` on the GPU (crates/skelight-gpu), written like a
-//! CPU render (same EXR with its sample count, so `merge` combines GPU and CPU renders).
+//! `render` and `reference --device gpu`: `pt`, `ibpt` or `lt` on the GPU (crates/skelight-gpu)
+//! as a job like the CPU's (`--spp`, `--time`, `--shard`, checkpoints; the same EXRs, so
+//! `merge` combines a GPU render with CPU renders of other seeds), and `bench … --device gpu`.
 
 use anyhow::{bail, Result};
 
@@ -9,9 +10,10 @@ use crate::render_cmd::RenderArgs;
 pub(crate) fn render(args: &RenderArgs) -> Result<()> {
     use anyhow::Context;
     let name = skelight::integrator::registry::find(&args.integrator)?.name;
-    let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
+    // Refused before the scene loads.
+    if skelight_gpu::Estimator::from_name(name).is_none() {
         bail!("--device gpu renders --integrator pt, ibpt or lt, not {name}");
-    };
+    }
     if !args.params.is_empty() || args.heuristic.is_some() {
         bail!("--device gpu takes no estimator parameters (pt, ibpt and lt have none on the GPU)");
     }
@@ -26,15 +28,31 @@ pub(crate) fn render(args: &RenderArgs) -> Result<()> {
         time: args.time,
         seed: args.seed,
         shard: args.shard,
+        device: skelight::job::Device::Gpu,
         ..Default::default()
     };
     let mut job = crate::render_cmd::Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
-    let mut gpu = skelight_gpu::GpuRenderer::new(&job.scene, estimator)?;
-    eprintln!("GPU {}: {} (splats by {:?})", estimator.name(), gpu.adapter, gpu.splat_mode);
-    let r = job.run_with(args.quiet, |job, scene, on_pass| skelight_gpu::job::run(&mut gpu, scene, job, on_pass))?;
+    let mut render = job_renderer(&job)?;
+    let r = job.run_with(args.quiet, |job, scene, on_pass| render(job, scene, None, on_pass))?;
     let img = r.save(&args.output, args.exposure).with_context(|| format!("writing {}", args.output.display()))?;
     crate::render_cmd::summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
     Ok(())
+}
+
+/// What renders `job`: the CPU's estimator (`Job::run`), or for a GPU job its kernels, opened
+/// here (skelight_gpu::job::run; the adapter is named on stderr).
+#[cfg(feature = "gpu")]
+pub(crate) fn job_renderer(job: &crate::render_cmd::Job) -> Result<Box<skelight::job::Render>> {
+    if job.device == skelight::job::Device::Cpu {
+        return Ok(Box::new(|job, scene, resume, on_pass| job.run(scene, resume, on_pass)));
+    }
+    let name = job.integrator.name();
+    let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
+        bail!("--device gpu renders --integrator pt, ibpt or lt, not {name}");
+    };
+    let mut gpu = skelight_gpu::GpuRenderer::new(&job.scene, estimator)?;
+    eprintln!("GPU {}: {} (splats by {:?})", estimator.name(), gpu.adapter, gpu.splat_mode);
+    Ok(Box::new(move |job, scene, resume, on_pass| skelight_gpu::job::run(&mut gpu, scene, job, resume, on_pass)))
 }
 
 /// `bench render --device gpu`: samples/s and rays/s after one warm-up sample (shader
@@ -202,6 +220,14 @@ pub(crate) fn compare_external(
             "{name}: this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu"
         )))
     })
+}
+
+#[cfg(not(feature = "gpu"))]
+pub(crate) fn job_renderer(job: &crate::render_cmd::Job) -> Result<Box<skelight::job::Render>> {
+    if job.device != skelight::job::Device::Cpu {
+        bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu");
+    }
+    Ok(Box::new(|job, scene, resume, on_pass| job.run(scene, resume, on_pass)))
 }
 
 #[cfg(not(feature = "gpu"))]

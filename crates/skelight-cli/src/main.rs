@@ -172,6 +172,10 @@ struct ReferenceArgs {
     /// How often to write the checkpoint (and the image so far).
     #[arg(long, value_parser = parse_duration, default_value = "5m")]
     checkpoint_every: Duration,
+    /// Where to render: cpu, or gpu (pt, ibpt or lt; a build with `--features gpu`). A
+    /// checkpoint resumes only on the device that wrote it.
+    #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
+    device: String,
     #[command(flatten)]
     setup: SceneSetup,
     #[arg(short = 'D', value_parser = parse_define)]
@@ -450,21 +454,27 @@ pub(crate) fn write_text(path: &Path, text: &str) -> Result<()> {
 
 /// Long render that checkpoints to OUT.exr.ckpt and resumes from it after an interruption.
 fn reference(args: ReferenceArgs) -> Result<()> {
+    let device = if args.device == "gpu" { skelight::job::Device::Gpu } else { skelight::job::Device::Cpu };
+    if device == skelight::job::Device::Gpu && !args.params.is_empty() {
+        bail!("--device gpu takes no estimator parameters (pt, ibpt and lt have none on the GPU)");
+    }
     let spec = JobSpec {
         integrator: args.integrator.clone(),
         params: args.params.clone(),
         spp: args.spp,
         time: args.time,
         seed: args.seed,
+        device,
         ..JobSpec::default()
     };
     let mut job = Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
+    let mut render = gpu_cmd::job_renderer(&job)?;
     let reference = job.open_reference(&args.output, args.checkpoint_every)?;
     let checkpoint = reference.checkpoint.clone();
     if let Some((spp, elapsed)) = reference.resumed() {
         eprintln!("resuming from {} ({spp} spp, {:.1} s done)", checkpoint.display(), elapsed.as_secs_f64());
     }
-    let r = job.run_with(args.quiet, |job, scene, on_pass| reference.run(job, scene, on_pass))?;
+    let r = job.run_with(args.quiet, |job, scene, on_pass| reference.run_on(job, scene, on_pass, &mut render))?;
     let img = r.film.image();
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
     eprintln!("checkpoint kept at {} (rerun with a larger --spp or --time to extend)", checkpoint.display());

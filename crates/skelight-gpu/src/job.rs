@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use skelight::film::Film;
 use skelight::integrator::{registry, Preparation, Progress, RenderOptions, RenderResult};
-use skelight::job::{Job, JobError, JobSpec, Rendered};
+use skelight::job::{Device, Job, JobError, JobSpec, Rendered};
 use skelight::scene::Scene;
 use skelight::shard::Manifest;
 
@@ -27,50 +27,51 @@ fn next_batch(done: u32, elapsed: Duration, left: Option<Duration>) -> u32 {
     (rate * span.as_secs_f64()).clamp(1.0, u32::MAX as f64) as u32
 }
 
-/// The key a GPU shard's manifest carries: the job's (scene, estimator, seed, size, depth,
-/// samples) and the device, so that GPU shards merge with each other and not with the CPU's
-/// (the GPU's random numbers and float sums are not the CPU's, and its `ibpt` leaves out a
-/// thin lens's t = 0 strategy).
-pub fn render_key(job: &Job, scene: &Scene) -> String {
-    format!("{}|device gpu", job.key(scene))
-}
-
-/// Renders `job` on `gpu` (bound to `scene` and the job's estimator): sample indices
-/// 0..spp, the shard's slice of them, or, under a time budget, from 0 until the budget is
-/// spent (at most `spp` when given too); the last batch may run up to a quarter of a second
-/// past the budget. `on_pass` sees the progress and the film after each batch; its error
-/// stops the render and is returned.
+/// Renders `job` (a GPU job: `JobSpec::device`) on `gpu` (bound to `scene` and the job's
+/// estimator): sample indices 0..spp, the shard's slice of them, or, under a time budget,
+/// from 0 until the budget is spent (at most `spp` when given too), from `resume`'s film and
+/// sample count when given (a checkpointed reference); the last batch may run up to a
+/// quarter of a second past the budget. `on_pass` sees the progress and the film after each
+/// batch; its error stops the render and is returned.
 pub fn run(
     gpu: &mut GpuRenderer,
     scene: &Scene,
     job: &Job,
+    resume: Option<(Film, u32)>,
     mut on_pass: impl FnMut(&Progress, &Film) -> Result<(), JobError>,
 ) -> Result<Rendered, JobError> {
+    if job.device != Device::Gpu {
+        return Err(JobError::Invalid("a CPU job runs on the CPU (Job::run)".into()));
+    }
     let (spp, time) = (job.opts.spp, job.opts.time);
-    let samples = match (job.shard, spp) {
-        (Some(shard), Some(spp)) => shard.samples(spp)?,
+    let samples = match (job.shard_samples(), spp) {
+        (Some(shard), _) if resume.is_none() => shard,
+        (Some(_), _) => return Err(JobError::Invalid("a shard cannot resume another render".into())),
         (None, Some(spp)) => 0..spp,
         (None, None) if time.is_some() => 0..u32::MAX,
         _ => return Err(JobError::Invalid("give a sample count (a shard needs one) or a time budget".into())),
     };
     let s = &scene.settings;
-    let mut film = Film::new(s.width, s.height, s.filter);
+    let (mut film, first) = match resume {
+        Some((film, spp)) => (film, spp),
+        None => (Film::new(s.width, s.height, s.filter), samples.start),
+    };
     let pixels = (s.width * s.height) as f64;
     let start = Instant::now();
     let mut done = 0u32;
-    while samples.start + done < samples.end {
+    while first + done < samples.end {
         let elapsed = start.elapsed();
         let left = time.map(|t| t.saturating_sub(elapsed));
         if left.is_some_and(|l| l.is_zero()) {
             break;
         }
-        let n = next_batch(done, elapsed, left).min(samples.end - samples.start - done);
-        gpu.render_into(&mut film, job.opts.seed, samples.start + done, n, |_| {})
+        let n = next_batch(done, elapsed, left).min(samples.end - first - done);
+        gpu.render_into(&mut film, job.opts.seed, first + done, n, |_| {})
             .map_err(|e| JobError::Device(e.to_string()))?;
         done += n;
         let elapsed = start.elapsed();
         let progress = Progress {
-            spp_done: done,
+            spp_done: first + done - samples.start,
             spp_target: spp.map(|_| samples.len() as u32),
             elapsed,
             time_budget: time,
@@ -78,10 +79,10 @@ pub fn run(
         };
         on_pass(&progress, &film)?;
     }
-    let manifest = job.shard.map(|shard| Manifest { render: render_key(job, scene), shard, samples: samples.clone() });
+    let manifest = job.shard.map(|shard| Manifest { render: job.key(scene), shard, samples: samples.clone() });
     Ok(Rendered {
         film,
-        samples: samples.start..samples.start + done,
+        samples: samples.start..first + done,
         elapsed: start.elapsed(),
         preparation: Preparation::default(),
         manifest,
@@ -108,11 +109,17 @@ pub fn compare_external(
         if !params.is_empty() {
             return Err(JobError::Invalid(format!("{name}: the GPU's estimators take no parameters")));
         }
-        let job_spec =
-            JobSpec { integrator: found.into(), spp: opts.spp, time: opts.time, seed: opts.seed, ..Default::default() };
+        let job_spec = JobSpec {
+            integrator: found.into(),
+            spp: opts.spp,
+            time: opts.time,
+            seed: opts.seed,
+            device: Device::Gpu,
+            ..Default::default()
+        };
         let job = Job::new(scene, name, &job_spec)?;
         let mut gpu = GpuRenderer::new(scene, estimator).map_err(|e| JobError::Device(e.to_string()))?;
-        let r = run(&mut gpu, scene, &job, |p, film| {
+        let r = run(&mut gpu, scene, &job, None, |p, film| {
             if on_pass(p, film) {
                 Ok(())
             } else {

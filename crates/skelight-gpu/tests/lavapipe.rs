@@ -52,15 +52,16 @@ fn worst_relative_difference(a: &Image, b: &Image) -> f32 {
 /// CPU shard, and a time budget renders sample indices from 0 as a sample count does.
 #[test]
 fn gpu_jobs_shard_and_stop_at_a_time_budget_as_cpu_jobs_do() {
-    use skelight::job::{Job, JobSpec};
+    use skelight::job::{Device, Job, JobSpec};
     use skelight::shard::{merge, Shard, ShardError};
     let scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
     let Some(mut gpu) = open(&scene, Estimator::Ibpt).unwrap() else { return };
     let run = |gpu: &mut GpuRenderer, spp, time, shard, device_gpu: bool| {
-        let spec = JobSpec { integrator: "ibpt".into(), spp, time, seed: 3, shard, ..Default::default() };
+        let device = if device_gpu { Device::Gpu } else { Device::Cpu };
+        let spec = JobSpec { integrator: "ibpt".into(), spp, time, seed: 3, shard, device, ..Default::default() };
         let mut job = Job::new(&scene, "c01", &spec).unwrap();
         if device_gpu {
-            skelight_gpu::job::run(gpu, &scene, &job, |_, _| Ok(())).unwrap()
+            skelight_gpu::job::run(gpu, &scene, &job, None, |_, _| Ok(())).unwrap()
         } else {
             job.run(&scene, None, |_, _| Ok(())).unwrap()
         }
@@ -92,6 +93,42 @@ fn gpu_jobs_shard_and_stop_at_a_time_budget_as_cpu_jobs_do() {
     let worst = worst_relative_difference(&timed.film.image(), &counted.film.image());
     println!("{} spp in a budget of {budget:?}: worst relative difference {worst:.2e} to --spp", timed.spp());
     assert!(worst < 1e-5, "the timed render differs from the counted one ({worst})");
+}
+
+/// `reference --device gpu`: a checkpointed GPU render resumed to more samples is the GPU
+/// render of all of them (up to float order), and a CPU job refuses the GPU's checkpoint.
+#[test]
+fn a_gpu_reference_resumes_from_its_checkpoint() {
+    use skelight::job::{Device, Job, JobSpec, Reference};
+    let scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
+    let Some(mut gpu) = open(&scene, Estimator::Pt).unwrap() else { return };
+    let whole = render(&mut gpu, &scene, 12, 9).image();
+    let dir = std::env::temp_dir().join(format!("skelight-gpu-reference-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let output = dir.join("ref.exr");
+    let every = std::time::Duration::from_secs(3600);
+    let job = |spp, device| {
+        let spec = JobSpec { integrator: "pt".into(), spp: Some(spp), seed: 9, device, ..Default::default() };
+        Job::new(&scene, "c01", &spec).unwrap()
+    };
+    let mut render: Box<skelight::job::Render> =
+        Box::new(move |job, scene, resume, on_pass| skelight_gpu::job::run(&mut gpu, scene, job, resume, on_pass));
+    for spp in [5, 12] {
+        let mut j = job(spp, Device::Gpu);
+        let reference = Reference::open(&mut j, &scene, &output, every).unwrap();
+        assert_eq!(reference.resumed().map(|r| r.0), (spp == 12).then_some(5));
+        let r = reference.run_on(&mut j, &scene, |_, _| Ok(()), &mut render).unwrap();
+        assert_eq!(r.samples, 0..spp);
+    }
+    let resumed = Image::load(&output).unwrap();
+    let worst = worst_relative_difference(&resumed, &whole);
+    println!("GPU reference resumed 5 → 12 spp against 12 spp at once: worst relative difference {worst:.2e}");
+    assert!(worst < 1e-5, "the resumed GPU reference differs from the single render ({worst})");
+    assert!(
+        Reference::open(&mut job(16, Device::Cpu), &scene, &output, every).is_err(),
+        "a CPU job took a GPU checkpoint"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// `compare`'s `gpu:NAME` estimators: run for the time budget beside the CPU's, their curve

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 use skelight::film::Film;
 use skelight::imageio::Image;
-use skelight::job::{Job, JobError, JobSpec};
+use skelight::job::{Device, Job, JobError, JobSpec};
 use skelight::shard::{self, Manifest, Shard, ShardOutput};
 
 use crate::scene::Scene;
@@ -161,7 +161,7 @@ pub fn render_key(
     shard: Option<(u32, u32)>,
     device: &str,
 ) -> PyResult<String> {
-    let on_gpu = gpu_estimator(device, integrator, params)?.is_some();
+    let device = if gpu_estimator(device, integrator, params)?.is_some() { Device::Gpu } else { Device::Cpu };
     let shard = shard.map(|(k, n)| Shard::new(k, n)).transpose().map_err(error)?;
     let spec = JobSpec {
         integrator: integrator.to_string(),
@@ -169,11 +169,12 @@ pub fn render_key(
         spp,
         seed,
         shard,
+        device,
         ..Default::default()
     };
     let s = scene.read();
     let job = Job::new(&s, scene.label(), &spec).map_err(error)?;
-    Ok(if on_gpu { skelight_gpu::job::render_key(&job, &s) } else { job.key(&s) })
+    Ok(job.key(&s))
 }
 
 /// For `device = "gpu"`, the GPU's estimator (pt, ibpt or lt, without parameters); `None` for
@@ -234,7 +235,8 @@ pub fn render(
         None => None,
     };
     let shard = shard.map(|(k, n)| Shard::new(k, n)).transpose().map_err(error)?;
-    let spec = JobSpec { integrator: integrator.to_string(), params: pairs, spp, time, seed, threads, shard };
+    let device = if on_gpu.is_some() { Device::Gpu } else { Device::Cpu };
+    let spec = JobSpec { integrator: integrator.to_string(), params: pairs, spp, time, seed, threads, shard, device };
     let scene_lock = scene.scene.clone();
     let label = scene.label();
     let mut raised: Option<PyErr> = None;
@@ -261,16 +263,16 @@ pub fn render(
                 })
             })
         };
-        let (rendered, key) = match on_gpu {
+        let rendered = match on_gpu {
             // On the GPU (skelight_gpu::job): the same job, its shard's samples or time budget.
             Some(estimator) => {
                 let mut gpu =
                     skelight_gpu::GpuRenderer::new(&scene, estimator).map_err(|e| JobError::Device(e.to_string()))?;
-                (skelight_gpu::job::run(&mut gpu, &scene, &job, on_pass)?, skelight_gpu::job::render_key(&job, &scene))
+                skelight_gpu::job::run(&mut gpu, &scene, &job, None, on_pass)?
             }
-            None => (job.run(&scene, None, on_pass)?, job.key(&scene)),
+            None => job.run(&scene, None, on_pass)?,
         };
-        Ok::<_, JobError>((rendered, key))
+        Ok::<_, JobError>((rendered, job.key(&scene)))
     });
     if let Some(e) = raised {
         return Err(e);

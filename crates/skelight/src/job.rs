@@ -39,6 +39,16 @@ pub enum JobError {
     Checkpoint { path: PathBuf, reason: String },
 }
 
+/// Where a job renders. The CPU runs its estimator here ([`Job::run`]); the GPU's kernels are
+/// another crate's (`skelight_gpu::job::run`), with other random numbers and float sums, so
+/// the render's key names the device: shards and checkpoints never mix the two.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Device {
+    #[default]
+    Cpu,
+    Gpu,
+}
+
 /// What to render with, and for how long.
 #[derive(Clone, Debug, Default)]
 pub struct JobSpec {
@@ -55,6 +65,7 @@ pub struct JobSpec {
     pub threads: usize,
     /// Render only this slice of the samples.
     pub shard: Option<Shard>,
+    pub device: Device,
 }
 
 /// A render ready to run on a scene.
@@ -64,6 +75,7 @@ pub struct Job {
     /// Names the scene in reports and manifests (its path, or the default scene).
     pub label: String,
     pub shard: Option<Shard>,
+    pub device: Device,
     /// What the registry and the estimator had to say (ignored scene properties, light the
     /// estimator cannot render).
     pub warnings: Vec<String>,
@@ -178,12 +190,13 @@ impl Job {
             warnings.push(format!("{why}; the image will miss that light"));
         }
         let opts = RenderOptions { spp: spec.spp, time: spec.time, seed: spec.seed, threads: spec.threads };
-        Ok(Job { integrator, opts, label: label.into(), shard: spec.shard, warnings })
+        Ok(Job { integrator, opts, label: label.into(), shard: spec.shard, device: spec.device, warnings })
     }
 
     /// Identifies what is rendered, so that a checkpoint is resumed and shards merged only
     /// with the same render: the scene's content (not its path, which differs between
-    /// machines), the estimator with its parameters, the seed, size and depth.
+    /// machines), the estimator with its parameters, the seed, size and depth, and the device
+    /// when it is not the CPU.
     pub fn key(&self, scene: &Scene) -> String {
         let s = &scene.settings;
         let mut key = format!(
@@ -198,11 +211,14 @@ impl Job {
         if self.shard.is_some() {
             key += &format!("|{} spp", self.opts.spp.unwrap_or(0));
         }
+        if self.device == Device::Gpu {
+            key += "|device gpu";
+        }
         key
     }
 
     /// The sample indices this job renders when it has a shard.
-    fn shard_samples(&self) -> Option<Range<u32>> {
+    pub fn shard_samples(&self) -> Option<Range<u32>> {
         let spp = self.opts.spp?;
         self.shard.and_then(|s| s.samples(spp).ok())
     }
@@ -216,6 +232,9 @@ impl Job {
         resume: Option<(Film, u32)>,
         mut on_pass: impl FnMut(&Progress, &Film) -> Result<(), JobError>,
     ) -> Result<Rendered, JobError> {
+        if self.device != Device::Cpu {
+            return Err(JobError::Invalid("a GPU job runs on the GPU's kernels (skelight_gpu::job::run)".into()));
+        }
         let shard_samples = self.shard_samples();
         if shard_samples.is_some() && resume.is_some() {
             return Err(JobError::Invalid("a shard cannot resume another render".into()));
@@ -266,6 +285,15 @@ impl Job {
     }
 }
 
+/// A job's renderer: the job, the scene, the film and sample count to resume from, and the
+/// callback after every pass (its error stops the render).
+pub type Render = dyn FnMut(
+    &mut Job,
+    &Scene,
+    Option<(Film, u32)>,
+    &mut dyn FnMut(&Progress, &Film) -> Result<(), JobError>,
+) -> Result<Rendered, JobError>;
+
 /// A long render to OUT.exr that checkpoints to OUT.exr.ckpt and, started again with the same
 /// job, resumes from it: the result is bit-identical to an uninterrupted render (random
 /// numbers depend on seed, pixel and sample index only; passes are aligned to sample 0).
@@ -314,10 +342,22 @@ impl Reference {
     /// Renders, writing the checkpoint and the image every `every` and at the end (the
     /// checkpoint is kept, so that a larger sample count or time extends the render).
     pub fn run(
+        self,
+        job: &mut Job,
+        scene: &Scene,
+        on_pass: impl FnMut(&Progress, &Film) -> Result<(), JobError>,
+    ) -> Result<Rendered, JobError> {
+        self.run_on(job, scene, on_pass, &mut |job, scene, resume, on_pass| job.run(scene, resume, on_pass))
+    }
+
+    /// [`Reference::run`] with the job rendered by `render` (the job, the scene, the film to
+    /// resume and the callback after every pass): the GPU's (`skelight_gpu::job::run`).
+    pub fn run_on(
         mut self,
         job: &mut Job,
         scene: &Scene,
         mut on_pass: impl FnMut(&Progress, &Film) -> Result<(), JobError>,
+        render: &mut Render,
     ) -> Result<Rendered, JobError> {
         let (resume, before) = match self.resume.take() {
             Some((film, spp, elapsed)) => (Some((film, spp)), elapsed),
@@ -331,7 +371,7 @@ impl Reference {
             save_film(film, spp, &self.output, 0.0).map(|_| ())
         };
         let mut last = Instant::now();
-        let r = job.run(scene, resume, |p, film| {
+        let r = render(job, scene, resume, &mut |p, film| {
             on_pass(p, film)?;
             if last.elapsed() >= self.every {
                 save(film, p.spp_done, p.elapsed)?;
@@ -341,5 +381,25 @@ impl Reference {
         })?;
         save(&r.film, r.spp(), r.elapsed)?;
         Ok(r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A GPU job's key names the device (its shards and checkpoints never mix with the
+    /// CPU's), and the CPU does not run it in its place.
+    #[test]
+    fn a_gpu_job_is_keyed_by_its_device_and_not_run_here() {
+        let mut scene = crate::scene::builtin::two_rooms();
+        scene.set_resolution(8, 8);
+        let job = |device| {
+            let spec = JobSpec { integrator: "pt".into(), spp: Some(1), device, ..Default::default() };
+            Job::new(&scene, "two rooms", &spec).unwrap()
+        };
+        let (cpu, mut gpu) = (job(Device::Cpu), job(Device::Gpu));
+        assert_eq!(gpu.key(&scene), format!("{}|device gpu", cpu.key(&scene)));
+        assert!(matches!(gpu.run(&scene, None, |_, _| Ok(())), Err(JobError::Invalid(_))));
     }
 }
