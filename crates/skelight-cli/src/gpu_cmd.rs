@@ -50,8 +50,15 @@ pub(crate) fn job_renderer(job: &crate::render_cmd::Job) -> Result<Box<skelight:
     let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
         bail!("--device gpu renders --integrator pt, ibpt or lt, not {name}");
     };
+    let setup = std::time::Instant::now();
     let mut gpu = skelight_gpu::GpuRenderer::new(&job.scene, estimator)?;
-    eprintln!("GPU {}: {} (splats by {:?})", estimator.name(), gpu.adapter, gpu.splat_mode);
+    eprintln!(
+        "GPU {}: {} (splats by {:?}; set up in {:.2} s, before the render's time)",
+        estimator.name(),
+        gpu.adapter,
+        gpu.splat_mode,
+        setup.elapsed().as_secs_f64()
+    );
     Ok(Box::new(move |job, scene, resume, on_pass| skelight_gpu::job::run(&mut gpu, scene, job, resume, on_pass)))
 }
 

@@ -76,7 +76,8 @@ pub(crate) struct RenderArgs {
     pub(crate) debug_distributions: Option<PathBuf>,
     /// Render only shard K of N (from 0) of the --spp samples: a deterministic slice of the
     /// sample indices, written with its film and a manifest in the EXR header, so that
-    /// `skelight merge` of all N shards gives the single render (up to f64 summation order).
+    /// `skelight merge` of all N shards gives the single render (up to f64 summation order;
+    /// with --device gpu, up to the device's f32 sums of 16 samples).
     #[arg(long, value_name = "K/N", value_parser = parse_shard)]
     pub(crate) shard: Option<Shard>,
     /// Where to render: cpu, or gpu (pt, ibpt or lt, on the first Vulkan adapter: a GPU, or

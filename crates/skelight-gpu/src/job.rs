@@ -11,27 +11,35 @@ use skelight::job::{Device, Job, JobError, JobSpec, Rendered};
 use skelight::scene::Scene;
 use skelight::shard::Manifest;
 
+use crate::launch::READBACK_BATCH;
 use crate::{Estimator, GpuRenderer};
 
-/// Work between two progress reports (and, under a time budget, the most it runs past it).
+/// Work between two progress reports under a time budget (and the most it runs past it).
 const BATCH_TIME: Duration = Duration::from_millis(250);
 
-/// Samples per pixel in a batch: what the rate measured so far renders in `BATCH_TIME` (or in
-/// the time left), at least one. The first batch is one sample, which measures the rate.
-fn next_batch(done: u32, elapsed: Duration, left: Option<Duration>) -> u32 {
+/// Samples per pixel in the next batch from sample index `at`. With a sample count alone, up
+/// to the next multiple of READBACK_BATCH, the device's f32 groups (render_into): the same
+/// command gives the same film bit for bit, and so does a reference resumed at a batch's end.
+/// Under a time budget, what the rate measured so far renders in `BATCH_TIME` (or in the time
+/// left), at least one; the first batch is one sample, which measures the rate (the number of
+/// samples depends on the machine's speed there anyway).
+fn next_batch(at: u32, done: u32, elapsed: Duration, left: Option<Duration>) -> u32 {
+    let Some(left) = left else {
+        return READBACK_BATCH - at % READBACK_BATCH;
+    };
     if done == 0 || elapsed.is_zero() {
         return 1;
     }
-    let span = left.map_or(BATCH_TIME, |l| l.min(BATCH_TIME));
     let rate = done as f64 / elapsed.as_secs_f64();
-    (rate * span.as_secs_f64()).clamp(1.0, u32::MAX as f64) as u32
+    (rate * left.min(BATCH_TIME).as_secs_f64()).clamp(1.0, u32::MAX as f64) as u32
 }
 
 /// Renders `job` (a GPU job: `JobSpec::device`) on `gpu` (bound to `scene` and the job's
 /// estimator): sample indices 0..spp, the shard's slice of them, or, under a time budget,
 /// from 0 until the budget is spent (at most `spp` when given too), from `resume`'s film and
 /// sample count when given (a checkpointed reference); the last batch may run up to a
-/// quarter of a second past the budget. `on_pass` sees the progress and the film after each
+/// quarter of a second past the budget, which counts from when the kernels are ready (their
+/// setup, GpuRenderer::new, is before). `on_pass` sees the progress and the film after each
 /// batch; its error stops the render and is returned.
 pub fn run(
     gpu: &mut GpuRenderer,
@@ -65,7 +73,7 @@ pub fn run(
         if left.is_some_and(|l| l.is_zero()) {
             break;
         }
-        let n = next_batch(done, elapsed, left).min(samples.end - first - done);
+        let n = next_batch(first + done, done, elapsed, left).min(samples.end - first - done);
         gpu.render_into(&mut film, job.opts.seed, first + done, n, |_| {})
             .map_err(|e| JobError::Device(e.to_string()))?;
         done += n;
@@ -136,12 +144,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn batches_fill_a_quarter_second_or_the_time_left() {
-        assert_eq!(next_batch(0, Duration::ZERO, None), 1);
-        // 100 samples in a second: 25 in a quarter, 10 in the 0.1 s left.
-        assert_eq!(next_batch(100, Duration::from_secs(1), None), 25);
-        assert_eq!(next_batch(100, Duration::from_secs(1), Some(Duration::from_millis(100))), 10);
+    fn batches_end_on_the_devices_groups_or_fill_the_time_left() {
+        // A sample count: up to the next multiple of READBACK_BATCH, whatever the speed.
+        assert_eq!(next_batch(0, 0, Duration::ZERO, None), READBACK_BATCH);
+        assert_eq!(next_batch(5, 5, Duration::from_secs(9), None), READBACK_BATCH - 5);
+        let hour = Some(Duration::from_secs(3600));
+        // A time budget: one sample first, then 100 samples in a second make 25 in a quarter,
+        // 10 in the 0.1 s left.
+        assert_eq!(next_batch(0, 0, Duration::ZERO, hour), 1);
+        assert_eq!(next_batch(100, 100, Duration::from_secs(1), hour), 25);
+        assert_eq!(next_batch(100, 100, Duration::from_secs(1), Some(Duration::from_millis(100))), 10);
         // Slow renders still take a sample per batch.
-        assert_eq!(next_batch(1, Duration::from_secs(60), None), 1);
+        assert_eq!(next_batch(1, 1, Duration::from_secs(60), hour), 1);
     }
 }

@@ -431,7 +431,10 @@ impl GpuRenderer {
     }
 
     /// Renders sample indices `first..first + spp` of every pixel with `seed` into `film`
-    /// (the scene's size and filter), `on_batch` seeing the samples done so far.
+    /// (the scene's size and filter), `on_batch` seeing the samples done so far. The samples
+    /// are summed on the device in f32 in groups aligned to multiples of READBACK_BATCH from
+    /// sample 0, then in f64 into the film: calls that split a range at those multiples give
+    /// the film of one call, bit for bit.
     pub fn render_into(
         &mut self,
         film: &mut Film,
@@ -448,9 +451,10 @@ impl GpuRenderer {
         self.params.seed_hi = (seed >> 32) as u32;
         let mut done = 0;
         while done < spp {
-            // A batch of READBACK_BATCH samples per pixel accumulates on the device (f32),
-            // in dispatches of `samples_per_dispatch`, then is added to the film in f64.
-            let n = READBACK_BATCH.min(spp - done);
+            // A batch of READBACK_BATCH samples per pixel (up to the next multiple)
+            // accumulates on the device (f32), in dispatches of `samples_per_dispatch`, then
+            // is added to the film in f64.
+            let n = (READBACK_BATCH - (first + done) % READBACK_BATCH).min(spp - done);
             let mut encoder = self.device.create_command_encoder(&Default::default());
             encoder.clear_buffer(&self.sums, 0, None);
             encoder.clear_buffer(&self.squares, 0, None);

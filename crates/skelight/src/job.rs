@@ -295,8 +295,9 @@ pub type Render = dyn FnMut(
 ) -> Result<Rendered, JobError>;
 
 /// A long render to OUT.exr that checkpoints to OUT.exr.ckpt and, started again with the same
-/// job, resumes from it: the result is bit-identical to an uninterrupted render (random
-/// numbers depend on seed, pixel and sample index only; passes are aligned to sample 0).
+/// job, resumes from it: on the CPU the result is bit-identical to an uninterrupted render
+/// (random numbers depend on seed, pixel and sample index only; passes are aligned to sample
+/// 0); on the GPU ([`Reference::run_on`]) up to the device's float sums (see README).
 pub struct Reference {
     pub output: PathBuf,
     pub checkpoint: PathBuf,

@@ -3,7 +3,7 @@
 One render is split into shards (deterministic slices of its sample indices, see
 ``skelight.render(..., shard=(k, n))``); each shard is a Dask task, and the finished shards
 are merged into the whole render, which equals the single render of the same seed and spp
-(up to the order of f64 sums). Dask does the scheduling: a task that raises is retried
+(up to the order of f64 sums; with ``device="gpu"``, up to the device's float32 sums). Dask does the scheduling: a task that raises is retried
 (``retries``), and a task on a worker that dies is recomputed on another worker. Results are
 keyed by shard index and ``skelight.merge`` refuses a shard given twice, so a shard that
 ran twice is never counted twice.
