@@ -2,40 +2,15 @@
 //! as a job like the CPU's (`--spp`, `--time`, `--shard`, checkpoints; the same EXRs, so
 //! `merge` combines a GPU render with CPU renders of other seeds), and `bench … --device gpu`.
 
+#[cfg(feature = "gpu")]
+use anyhow::Context;
 use anyhow::{bail, Result};
 
-use crate::render_cmd::RenderArgs;
-
+/// Refuses, before the scene loads, an estimator the GPU does not render (pt, ibpt and lt
+/// only) or parameters, which they do not take there.
 #[cfg(feature = "gpu")]
-pub(crate) fn render(args: &RenderArgs) -> Result<()> {
-    use anyhow::Context;
-    let name = skelight::integrator::registry::find(&args.integrator)?.name;
-    // Refused before the scene loads.
-    if skelight_gpu::Estimator::from_name(name).is_none() {
-        bail!("--device gpu renders --integrator pt, ibpt or lt, not {name}");
-    }
-    if !args.params.is_empty() || args.heuristic.is_some() {
-        bail!("--device gpu takes no estimator parameters (pt, ibpt and lt have none on the GPU)");
-    }
-    if args.debug_skeleton.is_some() || args.debug_strategies.is_some() || args.debug_distributions.is_some() {
-        bail!("--device gpu writes no --debug-… pictures (they belong to CPU estimators)");
-    }
-    // The CPU's job: it checks --spp, --time and --shard as for a CPU render, and names the
-    // render for a shard's manifest.
-    let spec = skelight::job::JobSpec {
-        integrator: name.into(),
-        spp: args.spp,
-        time: args.time,
-        seed: args.seed,
-        shard: args.shard,
-        device: skelight::job::Device::Gpu,
-        ..Default::default()
-    };
-    let mut job = crate::render_cmd::Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
-    let mut render = job_renderer(&job)?;
-    let r = job.run_with(args.quiet, |job, scene, on_pass| render(job, scene, None, on_pass))?;
-    let img = r.save(&args.output, args.exposure).with_context(|| format!("writing {}", args.output.display()))?;
-    crate::render_cmd::summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
+pub(crate) fn check_estimator(integrator: &str, params: &[(String, String)]) -> Result<()> {
+    skelight_gpu::job::estimator_for(integrator, params).context("--device gpu")?;
     Ok(())
 }
 
@@ -46,10 +21,7 @@ pub(crate) fn job_renderer(job: &crate::render_cmd::Job) -> Result<Box<skelight:
     if job.device == skelight::job::Device::Cpu {
         return Ok(Box::new(|job, scene, resume, on_pass| job.run(scene, resume, on_pass)));
     }
-    let name = job.integrator.name();
-    let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
-        bail!("--device gpu renders --integrator pt, ibpt or lt, not {name}");
-    };
+    let estimator = skelight_gpu::job::estimator_for(job.integrator.name(), &[]).context("--device gpu")?;
     let setup = std::time::Instant::now();
     let mut gpu = skelight_gpu::GpuRenderer::new(&job.scene, estimator)?;
     eprintln!(
@@ -66,10 +38,8 @@ pub(crate) fn job_renderer(job: &crate::render_cmd::Job) -> Result<Box<skelight:
 /// compilation and first dispatches), and what the renderer keeps on the device.
 #[cfg(feature = "gpu")]
 pub(crate) fn bench(path: &std::path::Path, scene: &skelight::scene::Scene, name: &str, spp: u32) -> Result<()> {
-    let name = skelight::integrator::registry::find(name)?.name;
-    let Some(estimator) = skelight_gpu::Estimator::from_name(name) else {
-        bail!("--device gpu benchmarks pt, ibpt or lt, not {name}");
-    };
+    let estimator = skelight_gpu::job::estimator_for(name, &[]).context("--device gpu")?;
+    let name = estimator.name();
     if spp == 0 {
         bail!("--spp must be at least 1");
     }
@@ -238,7 +208,7 @@ pub(crate) fn job_renderer(job: &crate::render_cmd::Job) -> Result<Box<skelight:
 }
 
 #[cfg(not(feature = "gpu"))]
-pub(crate) fn render(_: &RenderArgs) -> Result<()> {
+pub(crate) fn check_estimator(_: &str, _: &[(String, String)]) -> Result<()> {
     bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu")
 }
 

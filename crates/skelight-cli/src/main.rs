@@ -455,8 +455,8 @@ pub(crate) fn write_text(path: &Path, text: &str) -> Result<()> {
 /// Long render that checkpoints to OUT.exr.ckpt and resumes from it after an interruption.
 fn reference(args: ReferenceArgs) -> Result<()> {
     let device = if args.device == "gpu" { skelight::job::Device::Gpu } else { skelight::job::Device::Cpu };
-    if device == skelight::job::Device::Gpu && !args.params.is_empty() {
-        bail!("--device gpu takes no estimator parameters (pt, ibpt and lt have none on the GPU)");
+    if device == skelight::job::Device::Gpu {
+        gpu_cmd::check_estimator(&args.integrator, &args.params)?;
     }
     let spec = JobSpec {
         integrator: args.integrator.clone(),

@@ -250,8 +250,12 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
     if let Some(h) = args.heuristic {
         params.push(("heuristic".into(), format!("{h:?}").to_lowercase()));
     }
-    if args.device == "gpu" {
-        return crate::gpu_cmd::render(&args);
+    let device = if args.device == "gpu" { skelight::job::Device::Gpu } else { skelight::job::Device::Cpu };
+    if device == skelight::job::Device::Gpu {
+        crate::gpu_cmd::check_estimator(&args.integrator, &params)?;
+        if args.debug_skeleton.is_some() || args.debug_strategies.is_some() || args.debug_distributions.is_some() {
+            bail!("--device gpu writes no --debug-… pictures (they belong to CPU estimators)");
+        }
     }
     if args.shard.is_some()
         && (args.debug_skeleton.is_some() || args.debug_strategies.is_some() || args.debug_distributions.is_some())
@@ -265,6 +269,7 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
         time: args.time,
         seed: args.seed,
         shard: args.shard,
+        device,
         ..JobSpec::default()
     };
     let mut job = Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
@@ -312,7 +317,9 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
         let (integrator, _) = integrator::registry::create_for_scene(name, &job.scene.settings, &params)?;
         job.integrator = integrator;
     }
-    let r = job.run(args.quiet)?;
+    // The CPU's estimator, or the GPU's kernels (gpu_cmd::job_renderer).
+    let mut render = crate::gpu_cmd::job_renderer(&job)?;
+    let r = job.run_with(args.quiet, |job, scene, on_pass| render(job, scene, None, on_pass))?;
     let img = r.save(&args.output, args.exposure).with_context(|| format!("writing {}", args.output.display()))?;
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
     if let Some(dir) = &args.debug_distributions {

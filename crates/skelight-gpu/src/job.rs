@@ -34,6 +34,21 @@ fn next_batch(at: u32, done: u32, elapsed: Duration, left: Option<Duration>) -> 
     (rate * left.min(BATCH_TIME).as_secs_f64()).clamp(1.0, u32::MAX as f64) as u32
 }
 
+/// The GPU's estimator for a registry name (pt, ibpt or lt, by any name the registry knows
+/// them by), refusing parameters, which the GPU's estimators do not take: the one check that
+/// `render`, `reference` and `compare` on the GPU and the Python package make.
+pub fn estimator_for(integrator: &str, params: &[(String, String)]) -> Result<Estimator, JobError> {
+    let name = registry::find(integrator)?.name;
+    let estimator = Estimator::from_name(name)
+        .ok_or_else(|| JobError::Invalid(format!("the GPU renders pt, ibpt or lt, not {name}")))?;
+    if !params.is_empty() {
+        return Err(JobError::Invalid(
+            "the GPU takes no estimator parameters (pt, ibpt and lt have none there)".into(),
+        ));
+    }
+    Ok(estimator)
+}
+
 /// Renders `job` (a GPU job: `JobSpec::device`) on `gpu` (bound to `scene` and the job's
 /// estimator): sample indices 0..spp, the shard's slice of them, or, under a time budget,
 /// from 0 until the budget is spent (at most `spp` when given too), from `resume`'s film and
@@ -109,16 +124,10 @@ pub fn compare_external(
 ) -> Option<Result<RenderResult, JobError>> {
     let spec = name.strip_prefix("gpu:")?;
     let mut render = || {
-        let (estimator, params) = registry::parse_spec(spec)?;
-        let found = registry::find(&estimator)?.name;
-        let Some(estimator) = Estimator::from_name(found) else {
-            return Err(JobError::Invalid(format!("{name}: the GPU renders pt, ibpt or lt, not {found}")));
-        };
-        if !params.is_empty() {
-            return Err(JobError::Invalid(format!("{name}: the GPU's estimators take no parameters")));
-        }
+        let (integrator, params) = registry::parse_spec(spec)?;
+        let estimator = estimator_for(&integrator, &params).map_err(|e| JobError::Invalid(format!("{name}: {e}")))?;
         let job_spec = JobSpec {
-            integrator: found.into(),
+            integrator: estimator.name().into(),
             spp: opts.spp,
             time: opts.time,
             seed: opts.seed,

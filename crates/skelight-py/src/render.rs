@@ -161,40 +161,28 @@ pub fn render_key(
     shard: Option<(u32, u32)>,
     device: &str,
 ) -> PyResult<String> {
-    let device = if gpu_estimator(device, integrator, params)?.is_some() { Device::Gpu } else { Device::Cpu };
+    let pairs = param_pairs(params)?;
+    let device = if gpu_estimator(device, integrator, &pairs)?.is_some() { Device::Gpu } else { Device::Cpu };
     let shard = shard.map(|(k, n)| Shard::new(k, n)).transpose().map_err(error)?;
-    let spec = JobSpec {
-        integrator: integrator.to_string(),
-        params: param_pairs(params)?,
-        spp,
-        seed,
-        shard,
-        device,
-        ..Default::default()
-    };
+    let spec =
+        JobSpec { integrator: integrator.to_string(), params: pairs, spp, seed, shard, device, ..Default::default() };
     let s = scene.read();
     let job = Job::new(&s, scene.label(), &spec).map_err(error)?;
     Ok(job.key(&s))
 }
 
-/// For `device = "gpu"`, the GPU's estimator (pt, ibpt or lt, without parameters); `None` for
-/// the CPU; an error for another device.
+/// For `device = "gpu"`, the GPU's estimator (skelight_gpu::job::estimator_for: pt, ibpt or
+/// lt, without parameters); `None` for the CPU; an error for another device.
 fn gpu_estimator(
     device: &str,
     integrator: &str,
-    params: Option<&Bound<'_, PyDict>>,
+    params: &[(String, String)],
 ) -> PyResult<Option<skelight_gpu::Estimator>> {
     match device {
         "cpu" => Ok(None),
-        "gpu" => {
-            let name = skelight::integrator::registry::find(integrator).map_err(error)?.name;
-            let estimator = skelight_gpu::Estimator::from_name(name)
-                .ok_or_else(|| error(format!("device = 'gpu' renders pt, ibpt or lt, not {name}")))?;
-            if params.is_some_and(|p| !p.is_empty()) {
-                return Err(error("device = 'gpu' takes no estimator parameters (pt, ibpt and lt have none there)"));
-            }
-            Ok(Some(estimator))
-        }
+        "gpu" => skelight_gpu::job::estimator_for(integrator, params)
+            .map(Some)
+            .map_err(|e| error(format!("device = 'gpu': {e}"))),
         other => Err(error(format!("device = '{other}': give 'cpu' or 'gpu'"))),
     }
 }
@@ -225,8 +213,8 @@ pub fn render(
     progress: Option<PyObject>,
     device: &str,
 ) -> PyResult<Render> {
-    let on_gpu = gpu_estimator(device, integrator, params)?;
     let pairs = param_pairs(params)?;
+    let on_gpu = gpu_estimator(device, integrator, &pairs)?;
     let time = match time {
         Some(t) if !(t > 0.0 && t.is_finite() && t < 1e9) => {
             return Err(error(format!("time = {t}: give a positive number of seconds")))

@@ -25,3 +25,20 @@ def cli() -> Path:
     if not exe.exists():
         subprocess.run(["cargo", "build", "--release", "-p", "skelight-cli"], cwd=ROOT, check=True)
     return exe
+
+
+@pytest.fixture(scope="session")
+def gpu_render():
+    """skelight.render on the GPU, or a skip when the machine has no Vulkan adapter and none
+    is required (SKELIGHT_REQUIRE_GPU=1, set by scripts/test.sh where it has Vulkan)."""
+    import skelight
+
+    def render(scene, **kwargs):
+        try:
+            return skelight.render(scene, device="gpu", **kwargs)
+        except skelight.SkelightError as e:
+            if "no usable GPU adapter" in str(e) and os.environ.get("SKELIGHT_REQUIRE_GPU") != "1":
+                pytest.skip(f"no Vulkan adapter: {e}")
+            raise
+
+    return render

@@ -2,7 +2,6 @@
 shards that merge into the single render."""
 
 import _thread
-import os
 import pickle
 import signal
 import subprocess
@@ -104,18 +103,7 @@ def test_shard_keys_tell_renders_apart(c01):
         skelight.merge([a[0], c])
 
 
-def gpu_render(scene, **kwargs):
-    """skelight.render on the GPU, or a skip when the machine has no Vulkan adapter and none
-    is required (SKELIGHT_REQUIRE_GPU=1, set by scripts/test.sh where it has Vulkan)."""
-    try:
-        return skelight.render(scene, device="gpu", **kwargs)
-    except skelight.SkelightError as e:
-        if "no usable GPU adapter" in str(e) and os.environ.get("SKELIGHT_REQUIRE_GPU") != "1":
-            pytest.skip(f"no Vulkan adapter: {e}")
-        raise
-
-
-def test_gpu_device_shards_and_time_budget(c01):
+def test_gpu_device_shards_and_time_budget(c01, gpu_render):
     """device="gpu": its shards merge into its single render (float32 sums on the device,
     grouped otherwise: within 1e-5), its key names the device so a CPU shard never joins
     them, and a time budget renders whole batches from sample 0."""
