@@ -180,23 +180,43 @@ pub(crate) fn bench_rays(_: &[std::path::PathBuf], _: usize, _: usize) -> Result
     bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu")
 }
 
-/// `compare`'s `gpu:NAME` estimators (skelight_gpu::job::compare_external).
+/// `compare`'s `gpu:NAME` estimators (skelight_gpu::job::CompareOnGpu).
 #[cfg(feature = "gpu")]
-pub(crate) use skelight_gpu::job::compare_external;
+pub(crate) fn compare_external() -> impl skelight::compare::External {
+    skelight_gpu::job::CompareOnGpu
+}
 
-/// `compare`'s `gpu:NAME` estimators: refused by a build without the GPU.
+/// `compare`'s `gpu:NAME` estimators: refused by a build without the GPU, before any run.
 #[cfg(not(feature = "gpu"))]
-pub(crate) fn compare_external(
-    name: &str,
-    _: &skelight::scene::Scene,
-    _: &skelight::integrator::RenderOptions,
-    _: &mut dyn FnMut(&skelight::integrator::Progress, &skelight::film::Film) -> bool,
-) -> Option<Result<skelight::integrator::RenderResult, skelight::job::JobError>> {
-    name.starts_with("gpu:").then(|| {
-        Err(skelight::job::JobError::Invalid(format!(
-            "{name}: this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu"
-        )))
-    })
+pub(crate) fn compare_external() -> impl skelight::compare::External {
+    NoGpu
+}
+
+#[cfg(not(feature = "gpu"))]
+struct NoGpu;
+
+#[cfg(not(feature = "gpu"))]
+impl skelight::compare::External for NoGpu {
+    fn check(&mut self, name: &str, _: &skelight::scene::Scene) -> Option<Result<(), skelight::job::JobError>> {
+        name.starts_with("gpu:").then(|| {
+            Err(skelight::job::JobError::Invalid(format!(
+                "{name}: this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu"
+            )))
+        })
+    }
+
+    fn render(
+        &mut self,
+        name: &str,
+        scene: &skelight::scene::Scene,
+        _: &skelight::integrator::RenderOptions,
+        _: &mut dyn FnMut(&skelight::integrator::Progress, &skelight::film::Film) -> bool,
+    ) -> Result<skelight::integrator::RenderResult, skelight::job::JobError> {
+        Err(self
+            .check(name, scene)
+            .and_then(Result::err)
+            .unwrap_or_else(|| skelight::job::JobError::Invalid(format!("{name}: not a GPU estimator"))))
+    }
 }
 
 #[cfg(not(feature = "gpu"))]

@@ -473,6 +473,9 @@ fn reference(args: ReferenceArgs) -> Result<()> {
     let checkpoint = reference.checkpoint.clone();
     if let Some((spp, elapsed)) = reference.resumed() {
         eprintln!("resuming from {} ({spp} spp, {:.1} s done)", checkpoint.display(), elapsed.as_secs_f64());
+        if reference.finished() {
+            eprintln!("the checkpoint already holds the samples or time asked for: nothing to render");
+        }
     }
     let r = job.run_with(args.quiet, |job, scene, on_pass| reference.run_on(job, scene, on_pass, &mut render))?;
     let img = r.film.image();
@@ -514,7 +517,7 @@ fn compare_cmd(a: CompareArgs) -> Result<()> {
             }
             eprint!("\r{name}: {:.1}/{:.0} s, {} spp   ", p.elapsed.as_secs_f64(), a.time.as_secs_f64(), p.spp_done);
         },
-        &mut gpu_cmd::compare_external,
+        &mut gpu_cmd::compare_external(),
     )?;
     if !a.quiet {
         eprintln!();

@@ -5,6 +5,7 @@
 
 use std::time::{Duration, Instant};
 
+use skelight::compare::External;
 use skelight::film::Film;
 use skelight::integrator::{registry, Preparation, Progress, RenderOptions, RenderResult};
 use skelight::job::{Device, Job, JobError, JobSpec, Rendered};
@@ -112,20 +113,36 @@ pub fn run(
     })
 }
 
-/// The renderer of `compare`'s `gpu:NAME` (pt, ibpt or lt) for the comparison's time budget
-/// (skelight::compare::External), from the moment its kernels are ready: the setup
+/// `compare`'s renderer of `gpu:NAME` (pt, ibpt or lt; skelight::compare::External), for
+/// the comparison's time budget from the moment its kernels are ready: the setup
 /// (flattening, upload, kernel compilation) is a renderer's start, not its estimator's work,
-/// and is not counted. `None` for other names.
-pub fn compare_external(
-    name: &str,
-    scene: &Scene,
-    opts: &RenderOptions,
-    on_pass: &mut dyn FnMut(&Progress, &Film) -> bool,
-) -> Option<Result<RenderResult, JobError>> {
-    let spec = name.strip_prefix("gpu:")?;
-    let mut render = || {
-        let (integrator, params) = registry::parse_spec(spec)?;
-        let estimator = estimator_for(&integrator, &params).map_err(|e| JobError::Invalid(format!("{name}: {e}")))?;
+/// and is not counted.
+pub struct CompareOnGpu;
+
+impl CompareOnGpu {
+    fn estimator(name: &str) -> Option<Result<Estimator, JobError>> {
+        let spec = name.strip_prefix("gpu:")?;
+        Some(registry::parse_spec(spec).map_err(JobError::from).and_then(|(integrator, params)| {
+            estimator_for(&integrator, &params).map_err(|e| JobError::Invalid(format!("{name}: {e}")))
+        }))
+    }
+}
+
+impl External for CompareOnGpu {
+    fn check(&mut self, name: &str, scene: &Scene) -> Option<Result<(), JobError>> {
+        let estimator = CompareOnGpu::estimator(name)?;
+        Some(estimator.and_then(|_| GpuRenderer::check(scene).map_err(|e| JobError::Device(format!("{name}: {e}")))))
+    }
+
+    fn render(
+        &mut self,
+        name: &str,
+        scene: &Scene,
+        opts: &RenderOptions,
+        on_pass: &mut dyn FnMut(&Progress, &Film) -> bool,
+    ) -> Result<RenderResult, JobError> {
+        let estimator = CompareOnGpu::estimator(name)
+            .unwrap_or_else(|| Err(JobError::Invalid(format!("{name}: not a GPU estimator (gpu:NAME)"))))?;
         let job_spec = JobSpec {
             integrator: estimator.name().into(),
             spp: opts.spp,
@@ -144,8 +161,7 @@ pub fn compare_external(
             }
         })?;
         Ok(RenderResult { spp: r.spp(), film: r.film, elapsed: r.elapsed, preparation: r.preparation })
-    };
-    Some(render())
+    }
 }
 
 #[cfg(test)]

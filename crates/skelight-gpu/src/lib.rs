@@ -153,6 +153,19 @@ pub enum Splats {
     FloatAtomics,
 }
 
+/// The Vulkan adapter the kernels run on (the most powerful one).
+async fn adapter() -> Result<wgpu::Adapter, GpuError> {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+    desc.backends = wgpu::Backends::VULKAN;
+    wgpu::Instance::new(desc)
+        .request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            ..Default::default()
+        })
+        .await
+        .map_err(|e| GpuError::NoAdapter(e.to_string()))
+}
+
 impl GpuRenderer {
     /// Flattens `scene` (refusing what the GPU cannot render) and opens the first Vulkan
     /// adapter: a real GPU when there is one, else lavapipe.
@@ -179,6 +192,14 @@ impl GpuRenderer {
         pollster::block_on(GpuRenderer::open(flat, estimator, splats, adjust))
     }
 
+    /// Whether `scene` can be rendered here, without building the renderer: the scene is
+    /// inside the feature subset (it flattens) and Vulkan offers an adapter. `compare` asks
+    /// before its first run, so that a `gpu:` estimator it cannot run fails at once.
+    pub fn check(scene: &Scene) -> Result<(), GpuError> {
+        flatten::flatten(scene)?;
+        pollster::block_on(adapter()).map(|_| ())
+    }
+
     async fn open(
         mut flat: Flat,
         estimator: Estimator,
@@ -190,16 +211,7 @@ impl GpuRenderer {
             Estimator::Ibpt => 1,
             Estimator::Lt => 2,
         };
-        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
-        desc.backends = wgpu::Backends::VULKAN;
-        let instance = wgpu::Instance::new(desc);
-        let adapter = instance
-            .request_adapter(&wgpu::RequestAdapterOptions {
-                power_preference: wgpu::PowerPreference::HighPerformance,
-                ..Default::default()
-            })
-            .await
-            .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let adapter = adapter().await?;
         let info = adapter.get_info();
         let name = format!("{} ({}, {:?})", info.name, info.driver, info.device_type);
         let limits = adapter.limits();

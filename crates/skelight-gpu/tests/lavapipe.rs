@@ -146,7 +146,7 @@ fn a_gpu_reference_resumes_from_its_checkpoint() {
 fn compare_runs_gpu_estimators_beside_the_cpus() {
     use skelight::compare::run_with;
     use skelight::integrator::RenderOptions;
-    use skelight_gpu::job::compare_external;
+    use skelight_gpu::job::CompareOnGpu;
     let scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
     let Some(mut gpu) = open(&scene, Estimator::Ibpt).unwrap() else { return };
     let (mut bpt, _) = skelight::integrator::registry::create_for_scene("bpt", &scene.settings, &[]).unwrap();
@@ -155,7 +155,7 @@ fn compare_runs_gpu_estimators_beside_the_cpus() {
     let opts = RenderOptions { spp: None, time: Some(budget), seed: 4, threads: 0 };
     let names = ["gpu:ibpt".to_string(), "pt".to_string()];
     let every = std::time::Duration::ZERO;
-    let series = run_with(&scene, &names, &reference, &opts, every, |_, _| {}, &mut compare_external).unwrap();
+    let series = run_with(&scene, &names, &reference, &opts, every, |_, _| {}, &mut CompareOnGpu).unwrap();
     assert_eq!(series.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(), ["gpu:ibpt", "pt"]);
     let g = &series[0];
     let last = g.points.last().unwrap();
@@ -167,9 +167,18 @@ fn compare_runs_gpu_estimators_beside_the_cpus() {
         last.spp, last.seconds, last.metrics.relmse
     );
     assert!(worst < 1e-5, "compare's GPU image is not the GPU render of its samples ({worst})");
-    let refused =
-        |name: &str| run_with(&scene, &[name.into()], &reference, &opts, every, |_, _| {}, &mut compare_external);
-    assert!(refused("gpu:bpt").is_err() && refused("gpu:ibpt:rr_depth=2").is_err());
+    // What the GPU cannot run (another estimator, parameters, a scene outside its subset) is
+    // refused before the first run, not after the runs named before it.
+    let mut gaussian = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
+    gaussian.settings.filter = skelight::film::Filter::Gaussian { stddev: 0.5 };
+    for (name, scene) in [("gpu:bpt", &scene), ("gpu:ibpt:rr_depth=2", &scene), ("gpu:pt", &gaussian)] {
+        let mut passes = 0;
+        let names = ["pt".to_string(), name.to_string()];
+        let r = run_with(scene, &names, &reference, &opts, every, |_, _| passes += 1, &mut CompareOnGpu);
+        let message = r.err().map(|e| e.to_string()).unwrap_or_default();
+        println!("{name}: {message}");
+        assert!(message.contains(name) && passes == 0, "{name} was not refused before pt ran ({passes} passes)");
+    }
 }
 
 /// The launch shape (tiles, samples per dispatch, slices, the fused instant-BPT kernel,

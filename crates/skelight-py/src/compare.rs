@@ -66,7 +66,7 @@ pub fn compare<'py>(
                 &opts,
                 Duration::from_secs_f64(every),
                 |_, _| {},
-                &mut skelight_gpu::job::compare_external,
+                &mut skelight_gpu::job::CompareOnGpu,
             )
         })
         .map_err(error)?;

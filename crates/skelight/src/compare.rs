@@ -29,16 +29,40 @@ pub struct Series {
     pub preparation: f64,
 }
 
-/// A renderer outside this crate for the names it knows (the GPU's `gpu:NAME`): given a
-/// name, the options (a time budget) and the callback to call after every pass (false: stop),
-/// `Some` of its finished render, or `None` for a name it does not know (rendered here).
-pub type External<'a> = dyn FnMut(
-        &str,
-        &Scene,
-        &RenderOptions,
-        &mut dyn FnMut(&Progress, &Film) -> bool,
-    ) -> Option<Result<RenderResult, JobError>>
-    + 'a;
+/// A renderer outside this crate for the names it knows (the GPU's `gpu:NAME`).
+pub trait External {
+    /// `None` for a name it does not know (rendered here); otherwise whether it can render
+    /// the name on `scene`. Called for every name before any is rendered, so that a bad name
+    /// fails at once rather than after the runs before it.
+    fn check(&mut self, name: &str, scene: &Scene) -> Option<Result<(), JobError>>;
+
+    /// Renders a name `check` accepted with `opts` (a time budget), calling `on_pass` after
+    /// every pass (false: stop).
+    fn render(
+        &mut self,
+        name: &str,
+        scene: &Scene,
+        opts: &RenderOptions,
+        on_pass: &mut dyn FnMut(&Progress, &Film) -> bool,
+    ) -> Result<RenderResult, JobError>;
+}
+
+/// No external renderer: every name is rendered here.
+impl External for () {
+    fn check(&mut self, _: &str, _: &Scene) -> Option<Result<(), JobError>> {
+        None
+    }
+
+    fn render(
+        &mut self,
+        name: &str,
+        _: &Scene,
+        _: &RenderOptions,
+        _: &mut dyn FnMut(&Progress, &Film) -> bool,
+    ) -> Result<RenderResult, JobError> {
+        Err(JobError::Invalid(format!("{name}: no renderer outside the CPU's")))
+    }
+}
 
 /// Runs each estimator (`name` or `name:param=value:…`) in turn for `base.time`, measuring
 /// the error against `reference` after every pass (at most once per `every`); `on_pass`
@@ -51,10 +75,11 @@ pub fn run(
     every: Duration,
     on_pass: impl FnMut(&str, &Progress),
 ) -> Result<Vec<Series>, JobError> {
-    run_with(scene, names, reference, base, every, on_pass, &mut |_, _, _, _| None)
+    run_with(scene, names, reference, base, every, on_pass, &mut ())
 }
 
-/// [`run`], the names `external` knows rendered by it.
+/// [`run`], the names `external` knows rendered by it. Every name is checked before the
+/// first run starts.
 pub fn run_with(
     scene: &Scene,
     names: &[String],
@@ -62,7 +87,7 @@ pub fn run_with(
     base: &RenderOptions,
     every: Duration,
     mut on_pass: impl FnMut(&str, &Progress),
-    external: &mut External,
+    external: &mut dyn External,
 ) -> Result<Vec<Series>, JobError> {
     let time = base.time.ok_or_else(|| JobError::Invalid("a comparison needs a time budget".into()))?;
     eval::metrics(reference, reference).map_err(|_| JobError::Invalid("the reference has no pixels".into()))?;
@@ -72,8 +97,25 @@ pub fn run_with(
             scene.settings.width, scene.settings.height, reference.width, reference.height
         )));
     }
-    let mut out: Vec<Series> = Vec::new();
+    if names.is_empty() {
+        return Err(JobError::Invalid("a comparison needs at least one estimator".into()));
+    }
+    // Each name's estimator, or the external renderer's word on it, before any run.
+    let mut estimators = Vec::with_capacity(names.len());
     for name in names {
+        estimators.push(match external.check(name, scene) {
+            Some(checked) => {
+                checked?;
+                None
+            }
+            None => {
+                let (estimator, params) = integrator::registry::parse_spec(name)?;
+                Some(integrator::registry::create(&estimator, &params)?)
+            }
+        });
+    }
+    let mut out: Vec<Series> = Vec::new();
+    for (name, estimator) in names.iter().zip(estimators) {
         // The same estimator twice (e.g. to see run-to-run spread) gets distinct names.
         let repeats = out.iter().filter(|s| s.name == *name || s.name.starts_with(&format!("{name}#"))).count();
         let label = if repeats == 0 { name.clone() } else { format!("{name}#{}", repeats + 1) };
@@ -90,13 +132,9 @@ pub fn run_with(
             on_pass(name, p);
             true
         };
-        let r = match external(name, scene, &opts, &mut measure) {
-            Some(r) => r?,
-            None => {
-                let (estimator, params) = integrator::registry::parse_spec(name)?;
-                let mut integ = integrator::registry::create(&estimator, &params)?;
-                integrator::render(scene, integ.as_mut(), &opts, None, &mut measure)?
-            }
+        let r = match estimator {
+            Some(mut integ) => integrator::render(scene, integ.as_mut(), &opts, None, &mut measure)?,
+            None => external.render(name, scene, &opts, &mut measure)?,
         };
         let image = r.film.image();
         let metrics = eval::metrics(&image, reference).expect("sizes checked above");
@@ -129,4 +167,28 @@ pub fn time_to_error(points: &[Point], target: f64) -> Option<f64> {
         prev = Some(p);
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::rgb;
+
+    /// Every name is checked before the first run: a bad one after a long run would lose it.
+    #[test]
+    fn a_bad_name_fails_before_any_run() {
+        let mut scene = crate::scene::builtin::two_rooms();
+        scene.set_resolution(8, 8);
+        let reference = Image { width: 8, height: 8, pixels: vec![rgb(1.0, 1.0, 1.0); 64] };
+        let opts = RenderOptions { spp: None, time: Some(Duration::from_millis(200)), seed: 1, threads: 1 };
+        for bad in ["nosuch", "pt:nosuch=1", "bpt:heuristic=nosuch"] {
+            let mut passes = 0;
+            let names = ["pt".to_string(), bad.to_string()];
+            let r = run(&scene, &names, &reference, &opts, Duration::ZERO, |_, _| passes += 1);
+            let message = r.err().map(|e| e.to_string()).unwrap_or_default();
+            assert!(message.contains("nosuch"), "{bad}: {message}");
+            assert_eq!(passes, 0, "{bad}: pt ran before the bad name was refused");
+        }
+        assert!(run(&scene, &[], &reference, &opts, Duration::ZERO, |_, _| {}).is_err());
+    }
 }

@@ -305,6 +305,8 @@ pub struct Reference {
     pub every: Duration,
     /// The checkpoint found: its film, samples per pixel and the time already spent.
     resume: Option<(Film, u32, Duration)>,
+    /// The checkpoint already holds the job's samples or time: nothing is left to render.
+    finished: bool,
 }
 
 impl Reference {
@@ -317,6 +319,7 @@ impl Reference {
         }
         let checkpoint = PathBuf::from(format!("{}.ckpt", output.display()));
         let mut resume = None;
+        let mut finished = false;
         if checkpoint.exists() {
             let c = Checkpoint::load(&checkpoint)
                 .map_err(|reason| JobError::Checkpoint { path: checkpoint.clone(), reason })?;
@@ -327,12 +330,19 @@ impl Reference {
                     reason: format!("belongs to another render ({}); remove it or choose another output", c.key),
                 });
             }
+            finished = job.opts.time.is_some_and(|t| c.elapsed >= t) || job.opts.spp.is_some_and(|n| c.spp >= n);
             if let Some(t) = job.opts.time {
                 job.opts.time = Some(t.saturating_sub(c.elapsed).max(Duration::from_millis(1)));
             }
             resume = Some((c.film, c.spp, c.elapsed));
         }
-        Ok(Reference { output: output.to_path_buf(), checkpoint, every, resume })
+        Ok(Reference { output: output.to_path_buf(), checkpoint, every, resume, finished })
+    }
+
+    /// Whether the checkpoint already holds the job's samples or time (a rerun of a finished
+    /// reference): [`Reference::run`] then renders nothing and writes the image it holds.
+    pub fn finished(&self) -> bool {
+        self.finished
     }
 
     /// Samples per pixel and seconds the checkpoint holds, if one was found.
@@ -371,6 +381,18 @@ impl Reference {
                 .map_err(|reason| JobError::Checkpoint { path: self.checkpoint.clone(), reason })?;
             save_film(film, spp, &self.output, 0.0).map(|_| ())
         };
+        if let (true, Some((film, spp))) = (self.finished, &resume) {
+            // Rendering even one more pass would change a finished reference on every rerun.
+            let r = Rendered {
+                film: film.clone(),
+                samples: 0..*spp,
+                elapsed: before,
+                preparation: Preparation::default(),
+                manifest: None,
+            };
+            save(&r.film, r.spp(), Duration::ZERO)?;
+            return Ok(r);
+        }
         let mut last = Instant::now();
         let r = render(job, scene, resume, &mut |p, film| {
             on_pass(p, film)?;
@@ -402,5 +424,43 @@ mod tests {
         let (cpu, mut gpu) = (job(Device::Cpu), job(Device::Gpu));
         assert_eq!(gpu.key(&scene), format!("{}|device gpu", cpu.key(&scene)));
         assert!(matches!(gpu.run(&scene, None, |_, _| Ok(())), Err(JobError::Invalid(_))));
+    }
+
+    /// A rerun of a finished reference (its checkpoint holds the samples or the time asked
+    /// for) renders nothing: the same film, not one more pass each time.
+    #[test]
+    fn a_finished_reference_renders_nothing_more() {
+        let mut scene = crate::scene::builtin::two_rooms();
+        scene.set_resolution(8, 8);
+        let dir = std::env::temp_dir().join(format!("skelight-finished-reference-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let output = dir.join("ref.exr");
+        let time = JobSpec { integrator: "pt".into(), time: Some(Duration::from_millis(100)), ..Default::default() };
+        let spp = |n| JobSpec { integrator: "pt".into(), spp: Some(n), ..Default::default() };
+        for (first, again, finished) in
+            [(time.clone(), time.clone(), true), (spp(4), spp(4), true), (spp(4), spp(6), false)]
+        {
+            std::fs::remove_file(dir.join("ref.exr.ckpt")).ok();
+            let mut job = Job::new(&scene, "two rooms", &first).unwrap();
+            let done =
+                Reference::open(&mut job, &scene, &output, Duration::MAX).unwrap().run(&mut job, &scene, |_, _| Ok(()));
+            let done = done.unwrap();
+            let mut job = Job::new(&scene, "two rooms", &again).unwrap();
+            let reference = Reference::open(&mut job, &scene, &output, Duration::MAX).unwrap();
+            assert_eq!(reference.finished(), finished);
+            let mut passes = 0;
+            let rerun = reference.run(&mut job, &scene, |_, _| {
+                passes += 1;
+                Ok(())
+            });
+            let rerun = rerun.unwrap();
+            if finished {
+                assert_eq!((passes, rerun.spp()), (0, done.spp()), "a finished reference rendered more");
+                assert!(rerun.film.image().pixels == done.film.image().pixels);
+            } else {
+                assert_eq!(rerun.spp(), 6);
+            }
+        }
+        std::fs::remove_dir_all(&dir).ok();
     }
 }
