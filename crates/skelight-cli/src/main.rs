@@ -468,8 +468,13 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         ..JobSpec::default()
     };
     let mut job = Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
-    let mut render = gpu_cmd::job_renderer(&job)?;
     let reference = job.open_reference(&args.output, args.checkpoint_every)?;
+    // A finished reference renders nothing: no device is set up for it.
+    let mut render: Box<skelight::job::Render> = if reference.finished() {
+        Box::new(|_, _, _, _| Err(skelight::job::JobError::Invalid("a finished reference renders nothing".into())))
+    } else {
+        gpu_cmd::job_renderer(&job)?
+    };
     let checkpoint = reference.checkpoint.clone();
     if let Some((spp, elapsed)) = reference.resumed() {
         eprintln!("resuming from {} ({spp} spp, {:.1} s done)", checkpoint.display(), elapsed.as_secs_f64());

@@ -445,6 +445,16 @@ fn compare_writes_a_complete_report() {
         .output()
         .unwrap();
     assert!(!bad.status.success());
+    // A bad name fails before the first run, not after the runs named before it (pt here
+    // would print its progress, "pt: …/2 s"); a GPU estimator this build cannot run is one.
+    for bad in ["nosuch", "gpu:bpt"] {
+        let names = format!("pt,{bad}");
+        let args = ["compare", "--reference", reference.to_str().unwrap(), "--integrators", &names, "--time", "2"];
+        let out = bin().args(args).args(["-o", d.join("bad").to_str().unwrap()]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{bad}: {err}");
+        assert!(err.contains(bad) && !err.contains("/2 s"), "{bad} was not refused before pt ran: {err}");
+    }
 }
 
 /// Runs `skelight args`, which must fail with an error (not a panic or an abort) whose

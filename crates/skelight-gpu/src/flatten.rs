@@ -359,14 +359,44 @@ fn bsdf_name(b: &Bsdf) -> &'static str {
     }
 }
 
-pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
+/// The scene's filter, lights and materials in their GPU form: everything but the triangles.
+struct Shading {
+    filter_radius: f32,
+    emitters: Vec<Emitter>,
+    /// Each emitter's power (the weight of its pick); the emitting triangles' come later.
+    power: Vec<f64>,
+    tables: Tables,
+    environment_map: u32,
+    materials: Vec<Material>,
+}
+
+/// Whether the GPU renders `scene`: every refusal of [`flatten`], without copying the
+/// triangles or building the BVH (`compare` asks before its first run).
+pub fn supported(scene: &Scene) -> Result<(), GpuError> {
+    shading(scene)?;
+    check_meshes(scene)
+}
+
+/// The meshes' refusals: exact spheres that do not emit (the GPU has no sphere
+/// intersection; an emitting one is its triangles), and a scene without triangles.
+fn check_meshes(scene: &Scene) -> Result<(), GpuError> {
+    if let Some(mesh) = scene.meshes.iter().find(|m| m.sphere.is_some() && m.emission.is_none()) {
+        return Err(unsupported(format!("mesh '{}' is an exact sphere", mesh.name)));
+    }
+    if scene.meshes.iter().all(|m| m.indices.is_empty()) {
+        return Err(GpuError::Unsupported("the scene has no triangles".into()));
+    }
+    Ok(())
+}
+
+/// The filter, lights and materials, or why the GPU cannot render them.
+fn shading(scene: &Scene) -> Result<Shading, GpuError> {
     let s = &scene.settings;
     let filter_radius = match s.filter {
         Filter::Box => 0.0,
         Filter::Tent { radius } => radius,
         other => return Err(unsupported(format!("the film's filter is {other:?}"))),
     };
-    let cam = &scene.camera;
     // Point, spot and directional lights; area lights come with their meshes' triangles below.
     let mut emitters = Vec::new();
     let mut power = Vec::new();
@@ -472,6 +502,16 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
         }
         materials.push(flat);
     }
+    Ok(Shading { filter_radius, emitters, power, tables, environment_map, materials })
+}
+
+/// The scene in the kernels' buffers: [`shading`], the triangles in the BVH's order with
+/// their attributes, the emitters' pick table, the camera and settings.
+pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
+    let Shading { filter_radius, mut emitters, mut power, mut tables, environment_map, mut materials } =
+        shading(scene)?;
+    check_meshes(scene)?;
+    let (s, cam) = (&scene.settings, &scene.camera);
     let mut tris = Vec::new();
     let mut attributes = Vec::new();
     let mut emitting: Vec<(u32, Rgb, f32)> = Vec::new();
@@ -482,9 +522,6 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
             let mask = tables.texture(alpha).unwrap_or_else(|| tables.constant_texture(constant_value(alpha)));
             materials.push(Material { mask, ..materials[mesh.material as usize] });
             material = materials.len() as u32 - 1;
-        }
-        if mesh.sphere.is_some() && mesh.emission.is_none() {
-            return Err(unsupported(format!("mesh '{}' is an exact sphere", mesh.name)));
         }
         for i in 0..mesh.indices.len() {
             let [a, b, c] = mesh.triangle(i);
@@ -510,9 +547,6 @@ pub fn flatten(scene: &Scene) -> Result<Flat, GpuError> {
             attributes.push([dpdu.x, dpdu.y, dpdu.z, 0.0]);
             attributes.push([dpdv.x, dpdv.y, dpdv.z, 0.0]);
         }
-    }
-    if tris.is_empty() {
-        return Err(GpuError::Unsupported("the scene has no triangles".into()));
     }
     // Emitting triangles by power (π × area × luminance of their radiance), after the others.
     for &(tri, radiance, area) in &emitting {

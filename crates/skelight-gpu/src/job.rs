@@ -13,7 +13,7 @@ use skelight::scene::Scene;
 use skelight::shard::Manifest;
 
 use crate::launch::READBACK_BATCH;
-use crate::{Estimator, GpuRenderer};
+use crate::{Estimator, GpuError, GpuRenderer};
 
 /// Work between two progress reports under a time budget (and the most it runs past it).
 const BATCH_TIME: Duration = Duration::from_millis(250);
@@ -90,8 +90,7 @@ pub fn run(
             break;
         }
         let n = next_batch(first + done, done, elapsed, left).min(samples.end - first - done);
-        gpu.render_into(&mut film, job.opts.seed, first + done, n, |_| {})
-            .map_err(|e| JobError::Device(e.to_string()))?;
+        gpu.render_into(&mut film, job.opts.seed, first + done, n, |_| {})?;
         done += n;
         let elapsed = start.elapsed();
         let progress = Progress {
@@ -113,6 +112,26 @@ pub fn run(
     })
 }
 
+/// A GPU error as a job's: what the scene or the settings ask of the GPU that it cannot do
+/// is invalid input; the rest is the device's.
+impl From<GpuError> for JobError {
+    fn from(e: GpuError) -> JobError {
+        match e {
+            GpuError::Unsupported(_) | GpuError::Invalid(_) => JobError::Invalid(e.to_string()),
+            _ => JobError::Device(e.to_string()),
+        }
+    }
+}
+
+/// `e` prefixed by the `compare` entry it is about.
+fn named(name: &str, e: JobError) -> JobError {
+    let message = format!("{name}: {e}");
+    match e {
+        JobError::Device(_) => JobError::Device(message),
+        _ => JobError::Invalid(message),
+    }
+}
+
 /// `compare`'s renderer of `gpu:NAME` (pt, ibpt or lt; skelight::compare::External), for
 /// the comparison's time budget from the moment its kernels are ready: the setup
 /// (flattening, upload, kernel compilation) is a renderer's start, not its estimator's work,
@@ -122,16 +141,19 @@ pub struct CompareOnGpu;
 impl CompareOnGpu {
     fn estimator(name: &str) -> Option<Result<Estimator, JobError>> {
         let spec = name.strip_prefix("gpu:")?;
-        Some(registry::parse_spec(spec).map_err(JobError::from).and_then(|(integrator, params)| {
-            estimator_for(&integrator, &params).map_err(|e| JobError::Invalid(format!("{name}: {e}")))
-        }))
+        Some(
+            registry::parse_spec(spec)
+                .map_err(JobError::from)
+                .and_then(|(integrator, params)| estimator_for(&integrator, &params))
+                .map_err(|e| named(name, e)),
+        )
     }
 }
 
 impl External for CompareOnGpu {
     fn check(&mut self, name: &str, scene: &Scene) -> Option<Result<(), JobError>> {
         let estimator = CompareOnGpu::estimator(name)?;
-        Some(estimator.and_then(|_| GpuRenderer::check(scene).map_err(|e| JobError::Device(format!("{name}: {e}")))))
+        Some(estimator.and_then(|_| GpuRenderer::check(scene).map_err(|e| named(name, e.into()))))
     }
 
     fn render(
@@ -152,7 +174,7 @@ impl External for CompareOnGpu {
             ..Default::default()
         };
         let job = Job::new(scene, name, &job_spec)?;
-        let mut gpu = GpuRenderer::new(scene, estimator).map_err(|e| JobError::Device(e.to_string()))?;
+        let mut gpu = GpuRenderer::new(scene, estimator).map_err(|e| named(name, e.into()))?;
         let r = run(&mut gpu, scene, &job, None, |p, film| {
             if on_pass(p, film) {
                 Ok(())

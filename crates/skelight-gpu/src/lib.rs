@@ -153,6 +153,48 @@ pub enum Splats {
     FloatAtomics,
 }
 
+/// What the adapter offers the kernels, and the launch shape they run with.
+struct Plan {
+    /// The adapter, in words (name, driver, type).
+    name: String,
+    limits: wgpu::Limits,
+    float_atomics: bool,
+    shape: LaunchShape,
+    storage_buffers: u32,
+}
+
+/// The kernels' plan on `adapter` for a `width`×`height` film: the launch shape from the
+/// defaults, the environment and `adjust`, fitted to the adapter's buffers. Every refusal
+/// that needs the adapter but not the device (a bad SKELIGHT_GPU_* variable, too few
+/// storage buffers, a film too large) is here, so that GpuRenderer::check makes them too.
+fn plan(
+    adapter: &wgpu::Adapter,
+    width: u32,
+    height: u32,
+    splats: Splats,
+    adjust: impl FnOnce(&mut LaunchShape),
+) -> Result<Plan, GpuError> {
+    let info = adapter.get_info();
+    let name = format!("{} ({}, {:?})", info.name, info.driver, info.device_type);
+    let limits = adapter.limits();
+    let float_atomics =
+        splats != Splats::CompareAndSwap && adapter.features().contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
+    let mut shape = LaunchShape::from_env(info.device_type, width * height)?;
+    adjust(&mut shape);
+    shape.check()?;
+    let storage_buffers = STORAGE_BUFFERS + if shape.wavefront { wavefront::BUFFERS } else { 0 };
+    if limits.max_storage_buffers_per_shader_stage < storage_buffers {
+        return Err(GpuError::Device(format!(
+            "{name} offers {} storage buffers per shader stage; the kernels need {storage_buffers}",
+            limits.max_storage_buffers_per_shader_stage
+        )));
+    }
+    let max_bytes = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    let (w, h) = (width as u64, height as u64);
+    shape.fit(w * h, w.min(shape.tile as u64) * h.min(shape.tile as u64), max_bytes)?;
+    Ok(Plan { name, limits, float_atomics, shape, storage_buffers })
+}
+
 /// The Vulkan adapter the kernels run on (the most powerful one).
 async fn adapter() -> Result<wgpu::Adapter, GpuError> {
     let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
@@ -193,11 +235,14 @@ impl GpuRenderer {
     }
 
     /// Whether `scene` can be rendered here, without building the renderer: the scene is
-    /// inside the feature subset (it flattens) and Vulkan offers an adapter. `compare` asks
-    /// before its first run, so that a `gpu:` estimator it cannot run fails at once.
+    /// inside the feature subset (flatten::supported), Vulkan offers an adapter, and the
+    /// launch shape (the environment's included) and the film fit it. `compare` asks before
+    /// its first run, so that a `gpu:` estimator it cannot run fails at once.
     pub fn check(scene: &Scene) -> Result<(), GpuError> {
-        flatten::flatten(scene)?;
-        pollster::block_on(adapter()).map(|_| ())
+        flatten::supported(scene)?;
+        let adapter = pollster::block_on(adapter())?;
+        let s = &scene.settings;
+        plan(&adapter, s.width as u32, s.height as u32, Splats::Auto, |_| {}).map(|_| ())
     }
 
     async fn open(
@@ -212,21 +257,8 @@ impl GpuRenderer {
             Estimator::Lt => 2,
         };
         let adapter = adapter().await?;
-        let info = adapter.get_info();
-        let name = format!("{} ({}, {:?})", info.name, info.driver, info.device_type);
-        let limits = adapter.limits();
-        let float_atomics =
-            splats != Splats::CompareAndSwap && adapter.features().contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
-        let mut shape = LaunchShape::from_env(info.device_type, flat.params.width * flat.params.height)?;
-        adjust(&mut shape);
-        shape.check()?;
-        let storage_buffers = STORAGE_BUFFERS + if shape.wavefront { wavefront::BUFFERS } else { 0 };
-        if limits.max_storage_buffers_per_shader_stage < storage_buffers {
-            return Err(GpuError::Device(format!(
-                "{name} offers {} storage buffers per shader stage; the kernels need {storage_buffers}",
-                limits.max_storage_buffers_per_shader_stage
-            )));
-        }
+        let Plan { name, limits, float_atomics, shape, storage_buffers } =
+            plan(&adapter, flat.params.width, flat.params.height, splats, adjust)?;
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("skelight"),
@@ -264,9 +296,6 @@ impl GpuRenderer {
             include_str!("light_pass.wgsl"),
         ];
         let wavefront_source = if shape.wavefront { wavefront::source() } else { String::new() };
-        let max_bytes = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
-        let (w, h) = (flat.params.width as u64, flat.params.height as u64);
-        shape.fit(w * h, w.min(shape.tile as u64) * h.min(shape.tile as u64), max_bytes)?;
         let (wx, wy) = shape.workgroup;
         let source = (source.concat() + &wavefront_source)
             .replace("@workgroup_size(8, 8)", &format!("@workgroup_size({wx}, {wy})"));

@@ -148,13 +148,26 @@ fn compare_runs_gpu_estimators_beside_the_cpus() {
     use skelight::integrator::RenderOptions;
     use skelight_gpu::job::CompareOnGpu;
     let scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
-    let Some(mut gpu) = open(&scene, Estimator::Ibpt).unwrap() else { return };
     let (mut bpt, _) = skelight::integrator::registry::create_for_scene("bpt", &scene.settings, &[]).unwrap();
     let reference = render_spp(&scene, bpt.as_mut(), 64, 1).image();
     let budget = std::time::Duration::from_millis(800);
     let opts = RenderOptions { spp: None, time: Some(budget), seed: 4, threads: 0 };
-    let names = ["gpu:ibpt".to_string(), "pt".to_string()];
     let every = std::time::Duration::ZERO;
+    // What the GPU cannot run (another estimator, parameters, a scene outside its subset) is
+    // refused before the first run, not after the runs named before it (none of
+    // these needs an adapter).
+    let mut gaussian = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
+    gaussian.settings.filter = skelight::film::Filter::Gaussian { stddev: 0.5 };
+    for (name, scene) in [("gpu:bpt", &scene), ("gpu:ibpt:rr_depth=2", &scene), ("gpu:pt", &gaussian)] {
+        let mut passes = 0;
+        let names = ["pt".to_string(), name.to_string()];
+        let r = run_with(scene, &names, &reference, &opts, every, |_, _| passes += 1, &mut CompareOnGpu);
+        let message = r.err().map(|e| e.to_string()).unwrap_or_default();
+        println!("{name}: {message}");
+        assert!(message.contains(name) && passes == 0, "{name} was not refused before pt ran ({passes} passes)");
+    }
+    let Some(mut gpu) = open(&scene, Estimator::Ibpt).unwrap() else { return };
+    let names = ["gpu:ibpt".to_string(), "pt".to_string()];
     let series = run_with(&scene, &names, &reference, &opts, every, |_, _| {}, &mut CompareOnGpu).unwrap();
     assert_eq!(series.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(), ["gpu:ibpt", "pt"]);
     let g = &series[0];
@@ -167,18 +180,6 @@ fn compare_runs_gpu_estimators_beside_the_cpus() {
         last.spp, last.seconds, last.metrics.relmse
     );
     assert!(worst < 1e-5, "compare's GPU image is not the GPU render of its samples ({worst})");
-    // What the GPU cannot run (another estimator, parameters, a scene outside its subset) is
-    // refused before the first run, not after the runs named before it.
-    let mut gaussian = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
-    gaussian.settings.filter = skelight::film::Filter::Gaussian { stddev: 0.5 };
-    for (name, scene) in [("gpu:bpt", &scene), ("gpu:ibpt:rr_depth=2", &scene), ("gpu:pt", &gaussian)] {
-        let mut passes = 0;
-        let names = ["pt".to_string(), name.to_string()];
-        let r = run_with(scene, &names, &reference, &opts, every, |_, _| passes += 1, &mut CompareOnGpu);
-        let message = r.err().map(|e| e.to_string()).unwrap_or_default();
-        println!("{name}: {message}");
-        assert!(message.contains(name) && passes == 0, "{name} was not refused before pt ran ({passes} passes)");
-    }
 }
 
 /// The launch shape (tiles, samples per dispatch, slices, the fused instant-BPT kernel,
@@ -425,6 +426,45 @@ fn scenes_outside_the_subset_are_refused_by_name() {
         )
     };
     refused(&common::edited_conformance_scene("c05_constant_env", sunsky, 16, 16), "c05 under sunsky", "sun and sky");
+}
+
+/// `flatten::supported` (compare's check before its first run) refuses exactly the scenes
+/// `flatten` refuses, with the same reason, on every conformance scene and the edited ones
+/// above; it needs no adapter.
+#[test]
+fn supported_refuses_what_flatten_refuses() {
+    use skelight::math::{vec3, Vec3};
+    use skelight_gpu::flatten::{flatten, supported};
+    let dir = shared_dir().join("conformance/scenes");
+    let mut scenes: Vec<(String, Scene)> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "xml"))
+        .map(|p| (p.display().to_string(), load(&p, &[]).unwrap()))
+        .collect();
+    let mut sphere = common::load_small(&dir.join("c01_cbox_area.xml"), 8, 8);
+    let unlit = sphere.meshes.iter_mut().find(|m| m.emission.is_none()).unwrap();
+    unlit.sphere = Some(skelight::geometry::Sphere {
+        center: Vec3::ZERO,
+        radius: 1.0,
+        axes: [vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0), vec3(0.0, 0.0, 1.0)],
+        inward: false,
+    });
+    scenes.push(("an exact sphere".into(), sphere));
+    let mut empty = common::load_small(&dir.join("c01_cbox_area.xml"), 8, 8);
+    empty.meshes.iter_mut().for_each(|m| m.indices.clear());
+    scenes.push(("no triangles".into(), empty));
+    let mut gaussian = common::load_small(&dir.join("c01_cbox_area.xml"), 8, 8);
+    gaussian.settings.filter = skelight::film::Filter::Gaussian { stddev: 0.5 };
+    scenes.push(("a Gaussian filter".into(), gaussian));
+    let mut refused = 0;
+    for (name, scene) in &scenes {
+        let (a, b) = (supported(scene).err().map(|e| e.to_string()), flatten(scene).err().map(|e| e.to_string()));
+        assert_eq!(a, b, "{name}: supported and flatten disagree");
+        refused += a.is_some() as usize;
+    }
+    println!("{} scenes, {refused} refused by both", scenes.len());
+    assert!(refused >= 3 && refused < scenes.len(), "{refused} of {} refused", scenes.len());
 }
 
 /// A GPU estimator against the CPU's of the same name (independent random numbers):

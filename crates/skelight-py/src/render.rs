@@ -254,8 +254,7 @@ pub fn render(
         let rendered = match on_gpu {
             // On the GPU (skelight_gpu::job): the same job, its shard's samples or time budget.
             Some(estimator) => {
-                let mut gpu =
-                    skelight_gpu::GpuRenderer::new(&scene, estimator).map_err(|e| JobError::Device(e.to_string()))?;
+                let mut gpu = skelight_gpu::GpuRenderer::new(&scene, estimator)?;
                 skelight_gpu::job::run(&mut gpu, &scene, &job, None, on_pass)?
             }
             None => job.run(&scene, None, on_pass)?,

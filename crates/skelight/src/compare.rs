@@ -109,8 +109,9 @@ pub fn run_with(
                 None
             }
             None => {
-                let (estimator, params) = integrator::registry::parse_spec(name)?;
-                Some(integrator::registry::create(&estimator, &params)?)
+                let named = |e: integrator::params::ParamError| JobError::Invalid(format!("{name}: {e}"));
+                let (estimator, params) = integrator::registry::parse_spec(name).map_err(named)?;
+                Some(integrator::registry::create(&estimator, &params).map_err(named)?)
             }
         });
     }

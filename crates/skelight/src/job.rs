@@ -351,7 +351,8 @@ impl Reference {
     }
 
     /// Renders, writing the checkpoint and the image every `every` and at the end (the
-    /// checkpoint is kept, so that a larger sample count or time extends the render).
+    /// checkpoint is kept, so that a larger sample count or time extends the render). The
+    /// result's samples and time are the whole reference's, checkpointed runs included.
     pub fn run(
         self,
         job: &mut Job,
@@ -370,7 +371,7 @@ impl Reference {
         mut on_pass: impl FnMut(&Progress, &Film) -> Result<(), JobError>,
         render: &mut Render,
     ) -> Result<Rendered, JobError> {
-        let (resume, before) = match self.resume.take() {
+        let (mut resume, before) = match self.resume.take() {
             Some((film, spp, elapsed)) => (Some((film, spp)), elapsed),
             None => (None, Duration::ZERO),
         };
@@ -381,17 +382,12 @@ impl Reference {
                 .map_err(|reason| JobError::Checkpoint { path: self.checkpoint.clone(), reason })?;
             save_film(film, spp, &self.output, 0.0).map(|_| ())
         };
-        if let (true, Some((film, spp))) = (self.finished, &resume) {
-            // Rendering even one more pass would change a finished reference on every rerun.
-            let r = Rendered {
-                film: film.clone(),
-                samples: 0..*spp,
-                elapsed: before,
-                preparation: Preparation::default(),
-                manifest: None,
-            };
-            save(&r.film, r.spp(), Duration::ZERO)?;
-            return Ok(r);
+        // Rendering even one more pass would change a finished reference on every rerun; its
+        // checkpoint stays as it is, its image is written again.
+        if let Some((film, spp)) = resume.take_if(|_| self.finished) {
+            save_film(&film, spp, &self.output, 0.0)?;
+            let preparation = Preparation::default();
+            return Ok(Rendered { film, samples: 0..spp, elapsed: before, preparation, manifest: None });
         }
         let mut last = Instant::now();
         let r = render(job, scene, resume, &mut |p, film| {
@@ -403,7 +399,8 @@ impl Reference {
             Ok(())
         })?;
         save(&r.film, r.spp(), r.elapsed)?;
-        Ok(r)
+        // As the checkpoint and the samples: the whole reference's, not this run's.
+        Ok(Rendered { elapsed: before + r.elapsed, ..r })
     }
 }
 
@@ -437,28 +434,52 @@ mod tests {
         let output = dir.join("ref.exr");
         let time = JobSpec { integrator: "pt".into(), time: Some(Duration::from_millis(100)), ..Default::default() };
         let spp = |n| JobSpec { integrator: "pt".into(), spp: Some(n), ..Default::default() };
-        for (first, again, finished) in
-            [(time.clone(), time.clone(), true), (spp(4), spp(4), true), (spp(4), spp(6), false)]
-        {
+        let both = JobSpec { time: Some(Duration::from_secs(60)), ..spp(4) };
+        // (first run, rerun, whether the rerun finds it finished)
+        let cases = [
+            (time.clone(), time.clone(), true),
+            (spp(4), spp(4), true),
+            (spp(6), spp(4), true),
+            (both.clone(), both, true),
+            (spp(4), spp(6), false),
+        ];
+        for (first, again, finished) in cases {
             std::fs::remove_file(dir.join("ref.exr.ckpt")).ok();
             let mut job = Job::new(&scene, "two rooms", &first).unwrap();
             let done =
                 Reference::open(&mut job, &scene, &output, Duration::MAX).unwrap().run(&mut job, &scene, |_, _| Ok(()));
             let done = done.unwrap();
+            std::fs::remove_file(&output).unwrap();
             let mut job = Job::new(&scene, "two rooms", &again).unwrap();
             let reference = Reference::open(&mut job, &scene, &output, Duration::MAX).unwrap();
-            assert_eq!(reference.finished(), finished);
-            let mut passes = 0;
-            let rerun = reference.run(&mut job, &scene, |_, _| {
-                passes += 1;
-                Ok(())
-            });
+            assert_eq!(reference.finished(), finished, "{first:?} then {again:?}");
+            // What the renderer is handed: the checkpoint's samples to resume from.
+            let handed = std::rc::Rc::new(std::cell::Cell::new(None));
+            let (mut passes, seen) = (0, handed.clone());
+            let rerun = reference.run_on(
+                &mut job,
+                &scene,
+                |_, _| {
+                    passes += 1;
+                    Ok(())
+                },
+                &mut move |job, scene, resume, on_pass| {
+                    seen.set(Some(resume.as_ref().map(|r| r.1)));
+                    job.run(scene, resume, on_pass)
+                },
+            );
             let rerun = rerun.unwrap();
+            // The result's time is the whole reference's, and its image is written again.
+            assert!(rerun.elapsed + Duration::from_millis(1) >= done.elapsed && output.exists());
             if finished {
-                assert_eq!((passes, rerun.spp()), (0, done.spp()), "a finished reference rendered more");
+                assert_eq!(
+                    (passes, handed.get(), rerun.spp()),
+                    (0, None, done.spp()),
+                    "a finished reference rendered more"
+                );
                 assert!(rerun.film.image().pixels == done.film.image().pixels);
             } else {
-                assert_eq!(rerun.spp(), 6);
+                assert_eq!((handed.get(), rerun.spp()), (Some(Some(4)), 6), "not resumed from the checkpoint");
             }
         }
         std::fs::remove_dir_all(&dir).ok();
