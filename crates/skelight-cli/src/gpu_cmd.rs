@@ -196,26 +196,28 @@ pub(crate) fn compare_external() -> impl skelight::compare::External {
 struct NoGpu;
 
 #[cfg(not(feature = "gpu"))]
+impl NoGpu {
+    fn refusal() -> skelight::job::JobError {
+        skelight::job::JobError::Invalid(
+            "this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu".into(),
+        )
+    }
+}
+
+#[cfg(not(feature = "gpu"))]
 impl skelight::compare::External for NoGpu {
     fn check(&mut self, name: &str, _: &skelight::scene::Scene) -> Option<Result<(), skelight::job::JobError>> {
-        name.starts_with("gpu:").then(|| {
-            Err(skelight::job::JobError::Invalid(format!(
-                "{name}: this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu"
-            )))
-        })
+        name.starts_with("gpu:").then(|| Err(NoGpu::refusal()))
     }
 
     fn render(
         &mut self,
         name: &str,
-        scene: &skelight::scene::Scene,
+        _: &skelight::scene::Scene,
         _: &skelight::integrator::RenderOptions,
         _: &mut dyn FnMut(&skelight::integrator::Progress, &skelight::film::Film) -> bool,
     ) -> Result<skelight::integrator::RenderResult, skelight::job::JobError> {
-        Err(self
-            .check(name, scene)
-            .and_then(Result::err)
-            .unwrap_or_else(|| skelight::job::JobError::Invalid(format!("{name}: not a GPU estimator"))))
+        Err(NoGpu::refusal().about(name))
     }
 }
 

@@ -123,15 +123,6 @@ impl From<GpuError> for JobError {
     }
 }
 
-/// `e` prefixed by the `compare` entry it is about.
-fn named(name: &str, e: JobError) -> JobError {
-    let message = format!("{name}: {e}");
-    match e {
-        JobError::Device(_) => JobError::Device(message),
-        _ => JobError::Invalid(message),
-    }
-}
-
 /// `compare`'s renderer of `gpu:NAME` (pt, ibpt or lt; skelight::compare::External), for
 /// the comparison's time budget from the moment its kernels are ready: the setup
 /// (flattening, upload, kernel compilation) is a renderer's start, not its estimator's work,
@@ -141,19 +132,14 @@ pub struct CompareOnGpu;
 impl CompareOnGpu {
     fn estimator(name: &str) -> Option<Result<Estimator, JobError>> {
         let spec = name.strip_prefix("gpu:")?;
-        Some(
-            registry::parse_spec(spec)
-                .map_err(JobError::from)
-                .and_then(|(integrator, params)| estimator_for(&integrator, &params))
-                .map_err(|e| named(name, e)),
-        )
+        Some(registry::parse_spec(spec).map_err(JobError::from).and_then(|(e, params)| estimator_for(&e, &params)))
     }
 }
 
 impl External for CompareOnGpu {
     fn check(&mut self, name: &str, scene: &Scene) -> Option<Result<(), JobError>> {
         let estimator = CompareOnGpu::estimator(name)?;
-        Some(estimator.and_then(|_| GpuRenderer::check(scene).map_err(|e| named(name, e.into()))))
+        Some(estimator.and_then(|_| Ok(GpuRenderer::check(scene)?)))
     }
 
     fn render(
@@ -164,7 +150,8 @@ impl External for CompareOnGpu {
         on_pass: &mut dyn FnMut(&Progress, &Film) -> bool,
     ) -> Result<RenderResult, JobError> {
         let estimator = CompareOnGpu::estimator(name)
-            .unwrap_or_else(|| Err(JobError::Invalid(format!("{name}: not a GPU estimator (gpu:NAME)"))))?;
+            .unwrap_or_else(|| Err(JobError::Invalid("not a GPU estimator (gpu:NAME)".into())))
+            .map_err(|e| e.about(name))?;
         let job_spec = JobSpec {
             integrator: estimator.name().into(),
             spp: opts.spp,
@@ -174,7 +161,7 @@ impl External for CompareOnGpu {
             ..Default::default()
         };
         let job = Job::new(scene, name, &job_spec)?;
-        let mut gpu = GpuRenderer::new(scene, estimator).map_err(|e| named(name, e.into()))?;
+        let mut gpu = GpuRenderer::new(scene, estimator).map_err(|e| JobError::from(e).about(name))?;
         let r = run(&mut gpu, scene, &job, None, |p, film| {
             if on_pass(p, film) {
                 Ok(())

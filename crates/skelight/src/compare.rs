@@ -100,20 +100,18 @@ pub fn run_with(
     if names.is_empty() {
         return Err(JobError::Invalid("a comparison needs at least one estimator".into()));
     }
-    // Each name's estimator, or the external renderer's word on it, before any run.
+    // Each name's estimator, or the external renderer's word on it, before any run; an
+    // error names its entry.
     let mut estimators = Vec::with_capacity(names.len());
     for name in names {
-        estimators.push(match external.check(name, scene) {
-            Some(checked) => {
-                checked?;
-                None
-            }
-            None => {
-                let named = |e: integrator::params::ParamError| JobError::Invalid(format!("{name}: {e}"));
-                let (estimator, params) = integrator::registry::parse_spec(name).map_err(named)?;
-                Some(integrator::registry::create(&estimator, &params).map_err(named)?)
-            }
-        });
+        let estimator = match external.check(name, scene) {
+            Some(checked) => checked.map(|()| None),
+            None => integrator::registry::parse_spec(name)
+                .and_then(|(estimator, params)| integrator::registry::create(&estimator, &params))
+                .map(Some)
+                .map_err(JobError::from),
+        };
+        estimators.push(estimator.map_err(|e| e.about(name))?);
     }
     let mut out: Vec<Series> = Vec::new();
     for (name, estimator) in names.iter().zip(estimators) {

@@ -39,6 +39,19 @@ pub enum JobError {
     Checkpoint { path: PathBuf, reason: String },
 }
 
+impl JobError {
+    /// This error prefixed by what it is about (`compare`'s entry), keeping the kinds a
+    /// caller tells apart: the device's failure and a stop; the rest is invalid input.
+    pub fn about(self, what: &str) -> JobError {
+        let message = format!("{what}: {self}");
+        match self {
+            JobError::Device(_) => JobError::Device(message),
+            JobError::Stopped(_) => JobError::Stopped(message),
+            _ => JobError::Invalid(message),
+        }
+    }
+}
+
 /// Where a job renders. The CPU runs its estimator here ([`Job::run`]); the GPU's kernels are
 /// another crate's (`skelight_gpu::job::run`), with other random numbers and float sums, so
 /// the render's key names the device: shards and checkpoints never mix the two.
