@@ -14,6 +14,9 @@
 #                                  the megakernels' launch shape, and four small veach-door
 #                                  renders (two seeds of pt and ibpt) to compare with the CPU
 #                                  here; everything comes back under $OUT (gpu_device.txt)
+#   python3 bench/gpu_summary.py FILES_AT/gpu_device.txt
+#                                  here: the tables, and the launch-shape defaults chosen by
+#                                  the rule written in it before the figures came
 #   bench/gpu_device.sh baseline   here: CPU ibpt and pt with 2 threads, the same scenes and
 #                                  settings (run it on a quiet machine, twice, alternating)
 #   bench/gpu_device.sh local      here: the `measure` step on whatever Vulkan adapter this
@@ -237,7 +240,7 @@ case "${1:-}" in
         done
         ;;
     *)
-        sed -n '2,27p' "$0"
+        sed -n '2,28p' "$0"
         exit 2
         ;;
 esac
