@@ -212,12 +212,12 @@ impl skelight::compare::External for NoGpu {
 
     fn render(
         &mut self,
-        name: &str,
+        _: &str,
         _: &skelight::scene::Scene,
         _: &skelight::integrator::RenderOptions,
         _: &mut dyn FnMut(&skelight::integrator::Progress, &skelight::film::Film) -> bool,
     ) -> Result<skelight::integrator::RenderResult, skelight::job::JobError> {
-        Err(NoGpu::refusal().about(name))
+        Err(NoGpu::refusal())
     }
 }
 

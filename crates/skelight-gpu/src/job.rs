@@ -150,8 +150,7 @@ impl External for CompareOnGpu {
         on_pass: &mut dyn FnMut(&Progress, &Film) -> bool,
     ) -> Result<RenderResult, JobError> {
         let estimator = CompareOnGpu::estimator(name)
-            .unwrap_or_else(|| Err(JobError::Invalid("not a GPU estimator (gpu:NAME)".into())))
-            .map_err(|e| e.about(name))?;
+            .unwrap_or_else(|| Err(JobError::Invalid("not a GPU estimator (gpu:NAME)".into())))?;
         let job_spec = JobSpec {
             integrator: estimator.name().into(),
             spp: opts.spp,
@@ -161,12 +160,12 @@ impl External for CompareOnGpu {
             ..Default::default()
         };
         let job = Job::new(scene, name, &job_spec)?;
-        let mut gpu = GpuRenderer::new(scene, estimator).map_err(|e| JobError::from(e).about(name))?;
+        let mut gpu = GpuRenderer::new(scene, estimator)?;
         let r = run(&mut gpu, scene, &job, None, |p, film| {
             if on_pass(p, film) {
                 Ok(())
             } else {
-                Err(JobError::Stopped(format!("{name} stopped")))
+                Err(JobError::Stopped("stopped".into()))
             }
         })?;
         Ok(RenderResult { spp: r.spp(), film: r.film, elapsed: r.elapsed, preparation: r.preparation })

@@ -37,7 +37,7 @@ pub trait External {
     fn check(&mut self, name: &str, scene: &Scene) -> Option<Result<(), JobError>>;
 
     /// Renders a name `check` accepted with `opts` (a time budget), calling `on_pass` after
-    /// every pass (false: stop).
+    /// every pass (false: stop). Its errors need not name the entry: [`run_with`] does.
     fn render(
         &mut self,
         name: &str,
@@ -55,12 +55,12 @@ impl External for () {
 
     fn render(
         &mut self,
-        name: &str,
+        _: &str,
         _: &Scene,
         _: &RenderOptions,
         _: &mut dyn FnMut(&Progress, &Film) -> bool,
     ) -> Result<RenderResult, JobError> {
-        Err(JobError::Invalid(format!("{name}: no renderer outside the CPU's")))
+        Err(JobError::Invalid("no renderer outside the CPU's".into()))
     }
 }
 
@@ -100,8 +100,9 @@ pub fn run_with(
     if names.is_empty() {
         return Err(JobError::Invalid("a comparison needs at least one estimator".into()));
     }
-    // Each name's estimator, or the external renderer's word on it, before any run; an
-    // error names its entry.
+    // Each name's estimator, or the external renderer's word on it, before any run. An
+    // entry's errors, here and in its run, are named after it here (JobError::about) and
+    // nowhere else.
     let mut estimators = Vec::with_capacity(names.len());
     for name in names {
         let estimator = match external.check(name, scene) {
@@ -132,9 +133,12 @@ pub fn run_with(
             true
         };
         let r = match estimator {
-            Some(mut integ) => integrator::render(scene, integ.as_mut(), &opts, None, &mut measure)?,
-            None => external.render(name, scene, &opts, &mut measure)?,
-        };
+            Some(mut integ) => {
+                integrator::render(scene, integ.as_mut(), &opts, None, &mut measure).map_err(JobError::from)
+            }
+            None => external.render(name, scene, &opts, &mut measure),
+        }
+        .map_err(|e| e.about(name))?;
         let image = r.film.image();
         let metrics = eval::metrics(&image, reference).expect("sizes checked above");
         if points.last().is_none_or(|p| p.spp != r.spp) {
@@ -189,5 +193,39 @@ mod tests {
             assert_eq!(passes, 0, "{bad}: pt ran before the bad name was refused");
         }
         assert!(run(&scene, &[], &reference, &opts, Duration::ZERO, |_, _| {}).is_err());
+    }
+
+    /// An external renderer that accepts `ext:…` names and fails their runs.
+    struct Failing;
+
+    impl External for Failing {
+        fn check(&mut self, name: &str, _: &Scene) -> Option<Result<(), JobError>> {
+            name.starts_with("ext:").then_some(Ok(()))
+        }
+
+        fn render(
+            &mut self,
+            _: &str,
+            _: &Scene,
+            _: &RenderOptions,
+            _: &mut dyn FnMut(&Progress, &Film) -> bool,
+        ) -> Result<RenderResult, JobError> {
+            Err(JobError::Device("lost the device".into()))
+        }
+    }
+
+    /// A run's error names its entry (the renderer's own message need not), keeping its kind.
+    #[test]
+    fn a_failed_run_names_its_entry() {
+        let mut scene = crate::scene::builtin::two_rooms();
+        scene.set_resolution(8, 8);
+        let reference = Image { width: 8, height: 8, pixels: vec![rgb(1.0, 1.0, 1.0); 64] };
+        let opts = RenderOptions { spp: None, time: Some(Duration::from_millis(50)), seed: 1, threads: 1 };
+        let names = ["pt".to_string(), "ext:a".to_string()];
+        let r = run_with(&scene, &names, &reference, &opts, Duration::ZERO, |_, _| {}, &mut Failing);
+        match r {
+            Err(JobError::Device(message)) => assert_eq!(message, "ext:a: lost the device"),
+            other => panic!("expected the device's error named after its entry, got {:?}", other.err()),
+        }
     }
 }
