@@ -177,13 +177,18 @@ mod tests {
     use super::*;
     use crate::color::rgb;
 
-    /// Every name is checked before the first run: a bad one after a long run would lose it.
-    #[test]
-    fn a_bad_name_fails_before_any_run() {
+    /// The two rooms at 8×8, a flat reference and a time budget of `ms` for each entry.
+    fn small(ms: u64) -> (Scene, Image, RenderOptions) {
         let mut scene = crate::scene::builtin::two_rooms();
         scene.set_resolution(8, 8);
         let reference = Image { width: 8, height: 8, pixels: vec![rgb(1.0, 1.0, 1.0); 64] };
-        let opts = RenderOptions { spp: None, time: Some(Duration::from_millis(200)), seed: 1, threads: 1 };
+        (scene, reference, RenderOptions { spp: None, time: Some(Duration::from_millis(ms)), seed: 1, threads: 1 })
+    }
+
+    /// Every name is checked before the first run: a bad one after a long run would lose it.
+    #[test]
+    fn a_bad_name_fails_before_any_run() {
+        let (scene, reference, opts) = small(200);
         for bad in ["nosuch", "pt:nosuch=1", "bpt:heuristic=nosuch"] {
             let mut passes = 0;
             let names = ["pt".to_string(), bad.to_string()];
@@ -217,10 +222,7 @@ mod tests {
     /// A run's error names its entry (the renderer's own message need not), keeping its kind.
     #[test]
     fn a_failed_run_names_its_entry() {
-        let mut scene = crate::scene::builtin::two_rooms();
-        scene.set_resolution(8, 8);
-        let reference = Image { width: 8, height: 8, pixels: vec![rgb(1.0, 1.0, 1.0); 64] };
-        let opts = RenderOptions { spp: None, time: Some(Duration::from_millis(50)), seed: 1, threads: 1 };
+        let (scene, reference, opts) = small(50);
         let names = ["pt".to_string(), "ext:a".to_string()];
         let r = run_with(&scene, &names, &reference, &opts, Duration::ZERO, |_, _| {}, &mut Failing);
         match r {
