@@ -2,8 +2,38 @@
 # Runs the whole test suite: formatting, lints, unit tests, and the statistical tests
 # against the conformance references in ../shared (release mode: they render images), and
 # the Python package's tests in a venv it makes (.venv-py; needs python3 and PyPI).
+#   scripts/test.sh           the default tier (what CI runs): every estimator against every
+#                             conformance scene, with the samples that see a 2 % bias
+#   scripts/test.sh --full    the full tier: 128 to 512 samples, a 0.5 % bias (run it before
+#                             resolving an issue that changes an estimator, a BSDF, a light or
+#                             the film)
+# At the end it prints a time table: each step, each test binary, the 20 slowest tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+tier=default
+for arg in "$@"; do
+    case "$arg" in
+        --full) tier=full ;;
+        *) echo "usage: scripts/test.sh [--full]" >&2; exit 2 ;;
+    esac
+done
+export SKELIGHT_TEST_TIER=$tier
+steps=$(mktemp)
+trap 'rm -f "$steps"' EXIT
+# step NAME COMMAND...: runs the command, recording its wall time for the table; a failing
+# step prints the table so far and ends the run with its status.
+step() {
+    local name=$1 t0 rc=0
+    shift
+    t0=$EPOCHREALTIME
+    "$@" || rc=$?
+    printf '%s\t%s\n' "$name" "$(python3 -c "print($EPOCHREALTIME - $t0)")" >>"$steps"
+    if [ "$rc" != 0 ]; then
+        echo "FAILED: $name (exit $rc)" >&2
+        python3 scripts/time_table.py "$steps" "${junit:-}" || true
+        exit "$rc"
+    fi
+}
 if ! command -v cargo >/dev/null; then
     echo "cargo not found: install Rust (https://rustup.rs) first" >&2
     exit 1
@@ -36,15 +66,29 @@ else
     echo "note: no Vulkan driver; the GPU tests will say so and pass"
 fi
 
-cargo fmt --all -- --check
-cargo clippy --all-targets --release -- -D warnings
-cargo test --release --workspace --exclude skelight-py   # its tests are in Python, below
-# The Python package (import skelight) and rendering on a Dask LocalCluster.
-./scripts/python.sh
-cargo clippy --release -p skelight-cli --features gpu -- -D warnings   # render --device gpu
+# One build of the workspace serves the lints, the tests and the Python package: the same
+# profile and the same features (Embree's where its library is), so nothing is built twice.
+features=()
 if [ -n "$embree" ]; then
-    cargo clippy --all-targets --release --features embree -p skelight -p skelight-cli -p skelight-shape -- -D warnings
-    cargo test --release -p skelight --features embree --lib geometry
+    features=(--features skelight/embree)
 else
-    echo "note: libembree-dev not available; Embree backend tests skipped"
+    echo "note: libembree-dev not available; the Embree backend is neither built nor tested"
 fi
+step "cargo fmt --check" cargo fmt --all -- --check
+step "clippy (workspace, all targets${embree:+, embree})" cargo clippy --workspace --all-targets --release "${features[@]}" -- -D warnings
+# The CLI's render --device gpu (its code without the feature was linted just above).
+step "clippy (skelight-cli --features gpu)" cargo clippy --release -p skelight-cli --features gpu "${features[@]}" -- -D warnings
+junit=target/nextest/default/junit.xml
+rm -f "$junit"
+if command -v cargo-nextest >/dev/null; then
+    # Per-test processes, both cores busy to the end, and a JUnit report for the table.
+    step "build the tests" cargo nextest run --release --workspace --exclude skelight-py "${features[@]}" --no-run
+    step "cargo nextest ($tier tier)" cargo nextest run --release --workspace --exclude skelight-py "${features[@]}" --no-fail-fast
+else
+    echo "note: cargo-nextest not found (cargo install cargo-nextest --locked); cargo test has no per-test times"
+    step "build the tests" cargo test --release --workspace --exclude skelight-py "${features[@]}" --no-run
+    step "cargo test ($tier tier)" cargo test --release --workspace --exclude skelight-py "${features[@]}"
+fi
+# The Python package (import skelight) and rendering on a Dask LocalCluster.
+step "python package: build and pytest" env SKELIGHT_MATURIN_FEATURES="${features[*]:1}" ./scripts/python.sh
+python3 scripts/time_table.py "$steps" "$junit"

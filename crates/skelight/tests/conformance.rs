@@ -6,11 +6,8 @@ mod common;
 use std::path::Path;
 
 use common::*;
-use skelight::imageio::Image;
-use skelight::integrator::Integrator;
+use skelight::integrator::{samples_per_pass, Integrator};
 use skelight::scene::load::load;
-
-const SPP: u32 = 128;
 
 /// References that differ from the physically correct image, with the evidence: for each,
 /// the variant of `bench/mitsuba_reference_differences.py` (which reruns Mitsuba 3 on the
@@ -61,34 +58,6 @@ fn mitsuba_variant_mean(scene: &str, variant: &str) -> ([f64; 3], [f64; 3]) {
     (triple("mean"), triple("se"))
 }
 
-fn manifest(dir: &Path) -> Vec<(String, [f64; 3], u32)> {
-    let text = std::fs::read_to_string(dir.join("refs/manifest.json")).expect("manifest.json");
-    // Minimal reader for {"name": {"mean": [r, g, b], ..., "spp": n}, ...}.
-    let mut out = Vec::new();
-    let mut rest = text.as_str();
-    while let Some(i) = rest.find("\"mean\"") {
-        let head = &rest[..i];
-        let name_end = head.rfind("\": {").expect("entry name");
-        let name_start = head[..name_end].rfind('"').expect("entry name") + 1;
-        let name = head[name_start..name_end].to_string();
-        let body = &rest[i..];
-        let lb = body.find('[').unwrap();
-        let rb = body.find(']').unwrap();
-        let v: Vec<f64> = body[lb + 1..rb].split(',').map(|s| s.trim().parse().unwrap()).collect();
-        let spp_at = body.find("\"spp\"").unwrap();
-        let spp: u32 = body[spp_at + 6..]
-            .trim_start_matches([':', ' '])
-            .split(|c: char| !c.is_ascii_digit())
-            .next()
-            .unwrap()
-            .parse()
-            .unwrap();
-        out.push((name, [v[0], v[1], v[2]], spp));
-        rest = &body[rb..];
-    }
-    out
-}
-
 /// Runs one estimator over every conformance scene and reports all failures together.
 pub fn run_conformance(integrator_name: &str, min_tested: usize) {
     let dir = shared_dir().join("conformance");
@@ -109,47 +78,23 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
             continue;
         }
         tested += 1;
-        let reference = Image::load(&dir.join("refs").join(format!("{name}.exr"))).expect("reference");
-        let noise = reference_noise(&scene, 16, ref_spp);
-        let judge = |integrator: &mut dyn Integrator, spp: u32, seeds: (u64, u64)| {
-            let a = render_spp(&scene, integrator, spp, seeds.0);
-            let b = render_spp(&scene, integrator, spp, seeds.1);
-            let c = compare(&a, &b, &reference, &noise, ref_mean);
-            let ok = c.t < T_LIMIT && c.z.iter().all(|z| *z < Z_LIMIT);
-            (c, ok)
-        };
         if let Some(known) = KNOWN_REFERENCE_DIFFERENCES.iter().find(|k| k.scene == name) {
             failures.extend(check_against_corrected_mitsuba(integrator_name, integrator.as_mut(), scene, known));
             continue;
         }
-        let (mut c, mut ok) = judge(integrator.as_mut(), SPP, (0x1234_5678, 0x9E37_79B9_7F4A));
-        if !ok {
-            // Rare bright paths (a caustic seen in a mirror, which only one strategy finds)
-            // make the noise heavy-tailed: at few samples both renders usually miss them and
-            // the block differences underestimate the variance. A second look with 4× the
-            // samples and fresh seeds tells this apart from a bias, whose T grows with the
-            // sample count.
-            println!(
-                "{integrator_name} {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  at {SPP} spp: looking again at {} spp",
-                c.t,
-                c.z[0],
-                c.z[1],
-                c.z[2],
-                4 * SPP
-            );
-            (c, ok) = judge(integrator.as_mut(), 4 * SPP, (0x0051_7CC1_B727, 0x2545_F491_4F6C));
-        }
+        let target = ConformanceScene::new(&dir, name, scene, ref_mean, ref_spp);
+        let v = target.judge(integrator.as_mut(), CONFORMANCE_SEEDS);
         println!(
-            "{integrator_name} {name:24} T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (ref {:.4} {:.4} {:.4}) {}",
-            c.t, c.z[0], c.z[1], c.z[2], c.mean[0], c.mean[1], c.mean[2], ref_mean[0], ref_mean[1], ref_mean[2],
-            if ok {
-                "ok"
-            } else {
-                "FAIL"
-            }
+            "{integrator_name} {:24} {}  (ref {:.4} {:.4} {:.4}) {}",
+            target.name,
+            v.line(),
+            ref_mean[0],
+            ref_mean[1],
+            ref_mean[2],
+            if v.ok { "ok" } else { "FAIL" }
         );
-        if !ok {
-            failures.push(format!("{name}: T = {:.2}, z = {:?}", c.t, c.z));
+        if !v.ok {
+            failures.push(format!("{}: T = {:.2}, z = {:?}", target.name, v.comparison.t, v.comparison.z));
         }
     }
     assert!(failures.is_empty(), "{integrator_name} disagrees with Mitsuba 3 on:\n{}", failures.join("\n"));
@@ -168,10 +113,23 @@ fn check_against_corrected_mitsuba(
         scene.settings.max_depth = d;
     }
     let (mitsuba, mitsuba_se) = mitsuba_variant_mean(known.scene, known.variant);
-    let a = render_spp(&scene, integrator, SPP, 0x1234_5678).image();
-    let b = render_spp(&scene, integrator, SPP, 0x9E37_79B9_7F4A).image();
-    let (m, se) = pair_mean_se(&a, &b);
-    let z = [0, 1, 2].map(|c| (m[c] - mitsuba[c]).abs() / (se[c] * se[c] + mitsuba_se[c] * mitsuba_se[c]).sqrt());
+    // Splat-only estimators record no pixel variance: the two renders' block spread is the
+    // statistic. As judge_against_reference: from the tier's pilot count, doubled until the
+    // tier's bias is seen (a choice from the spread alone).
+    let t = tier();
+    let min_spp = samples_per_pass(integrator, scene.settings.width, scene.settings.height) * 3;
+    let mut spp = if integrator.learns_across_passes() { t.pilot_spp.max(min_spp) } else { t.pilot_spp };
+    let (m, z) = loop {
+        let a = render_spp(&scene, integrator, spp, 0x1234_5678).image();
+        let b = render_spp(&scene, integrator, spp, 0x9E37_79B9_7F4A).image();
+        let (m, se) = pair_mean_se(&a, &b);
+        let total = |c: usize| (se[c] * se[c] + mitsuba_se[c] * mitsuba_se[c]).sqrt();
+        let sees = (0..3).map(|c| (Z_LIMIT + POWER_Z) * total(c) / mitsuba[c].abs()).fold(0.0f64, f64::max);
+        if sees <= t.target_bias || spp >= t.max_spp {
+            break (m, [0, 1, 2].map(|c| (m[c] - mitsuba[c]).abs() / total(c)));
+        }
+        spp = (2 * spp).min(t.max_spp);
+    };
     let ok = z.iter().all(|z| *z < Z_LIMIT);
     println!(
         "{integrator_name} {:24} z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4} (Mitsuba '{}' {:.4} {:.4} {:.4}) {}",

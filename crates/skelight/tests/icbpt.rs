@@ -249,6 +249,7 @@ fn resampling_estimators_agree_with_bpt_at_every_depth_limit() {
         let mut scene = door_corner(32, 16);
         scene.settings.max_depth = max_depth;
         println!("max depth {max_depth}:");
+        let spp = tier_spp(spp);
         estimators_agree(&scene, &[("bpt", spp), ("skelbpt", spp), ("icbpt", spp)]);
     }
 }

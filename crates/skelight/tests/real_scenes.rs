@@ -244,7 +244,7 @@ fn estimators_agree_on_veach_door() {
 fn estimators_agree_on_sibenik() {
     let scene = load_small(&repo_scene("sibenik-two-lights.toml"), 48, 32);
     let runs = [("pt", 128), ("bpt", 32), ("skelpt", 128), ("skelbpt", 32), ("icbpt", 32)];
-    estimators_agree(&scene, &runs);
+    estimators_agree(&scene, &runs.map(|(name, spp)| (name, tier_spp(spp))));
 }
 
 /// … and of the Sponza atrium in the seeds' lighting, its arcade lit only indirectly.
@@ -252,7 +252,7 @@ fn estimators_agree_on_sibenik() {
 fn estimators_agree_on_sponza() {
     let scene = load_small(&repo_scene("sponza-directional.toml"), 48, 24);
     let runs = [("pt", 256), ("bpt", 64), ("skelpt", 256), ("skelbpt", 64), ("icbpt", 64)];
-    estimators_agree(&scene, &runs);
+    estimators_agree(&scene, &runs.map(|(name, spp)| (name, tier_spp(spp))));
 }
 
 /// The seeds' Sponza configuration over the Mitsuba Sponza: the TOML takes the XML's shapes

@@ -9,6 +9,7 @@ pub mod ibpt;
 pub mod icbpt;
 pub mod lt;
 pub mod mis;
+pub mod mutation;
 pub mod params;
 pub mod pt;
 pub mod registry;
@@ -207,6 +208,14 @@ fn tile_size(w: usize, h: usize) -> usize {
     tile
 }
 
+/// Samples per pixel of each pass of [`render`] on a `w`×`h` film: about 2^18 samples, or
+/// 2^16 for estimators that keep a pass's iterations in memory. Estimators that learn do so
+/// between passes.
+pub fn samples_per_pass(integrator: &dyn Integrator, w: usize, h: usize) -> u32 {
+    let pass_samples = if integrator.prepares_iterations() { 65_536 } else { 262_144 };
+    (pass_samples / (w * h).max(1)).clamp(1, 64) as u32
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     #[error("invalid render options: {0}")]
@@ -253,8 +262,7 @@ pub fn render(
     // sample 0, so that a render resumed from a checkpoint (taken between passes) adds up
     // its sums in exactly the same order as an uninterrupted one.
     // Estimators that prepare iterations keep a pass's worth of them in memory at once.
-    let pass_samples = if integrator.prepares_iterations() { 65_536 } else { 262_144 };
-    let pass = (pass_samples / (w * h).max(1)).clamp(1, 64) as u32;
+    let pass = samples_per_pass(integrator, w, h);
     // Kept from pass to pass, so that their buffers are allocated (and paged in) once.
     let mut iterations: Vec<Iteration> = (0..pass).map(|_| Iteration::default()).collect();
     loop {

@@ -9,6 +9,7 @@
 //! are then weighted against that mixture density, so the estimator stays unbiased whatever
 //! the guide proposes, as long as its density is exact.
 
+use super::mutation::{factor, Strategy};
 use super::{Integrator, SampleContext};
 use crate::color::Rgb;
 use crate::geometry::Ray;
@@ -174,6 +175,17 @@ fn draw<V: GuidedVertex>(
     }
 }
 
+/// [`Strategy::Hit`]'s factor, times [`Strategy::GuidedHit`]'s where the direction that
+/// found the light was drawn at a guided vertex.
+#[inline(always)]
+fn hit_factor(guided: bool) -> f32 {
+    if guided {
+        factor(Strategy::Hit) * factor(Strategy::GuidedHit)
+    } else {
+        factor(Strategy::Hit)
+    }
+}
+
 #[derive(Clone, Debug, Default)]
 pub struct PathTracer {
     /// Overrides the scene's `max_depth` when set.
@@ -203,6 +215,7 @@ pub fn trace<G: DirectionGuide>(
     let mut beta = Rgb::WHITE;
     // State of the previous scattering event, for MIS on emitter hits.
     let mut prev_delta = true;
+    let mut prev_guided = false;
     let mut prev_pdf = 0.0f32;
     let mut prev_p = ray.o;
     let mut depth = 0i32;
@@ -219,7 +232,7 @@ pub fn trace<G: DirectionGuide>(
                 } else {
                     power_heuristic(prev_pdf, scene.light_distribution.pmf(li as usize) * light.pdf_infinite(ray.d))
                 };
-                l += beta * le * w;
+                l += beta * le * (w * hit_factor(prev_guided));
             }
             break;
         };
@@ -234,7 +247,7 @@ pub fn trace<G: DirectionGuide>(
                 let pdf_light = scene.light_distribution.pmf(li as usize) * light.pdf_li_area(prev_p, si.p, si.ng);
                 power_heuristic(prev_pdf, pdf_light)
             };
-            l += beta * le * w;
+            l += beta * le * (w * hit_factor(prev_guided));
         }
         if max_depth >= 0 && depth >= max_depth {
             break;
@@ -261,7 +274,7 @@ pub fn trace<G: DirectionGuide>(
                             } else {
                                 power_heuristic_over_pdf(pdf, mixture_pdf(here.as_ref(), bsdf.pdf(&ctx, wi, wo), ls.wi))
                             };
-                            l += beta * f * ls.radiance * scale;
+                            l += beta * f * ls.radiance * (scale * factor(Strategy::Nee));
                         }
                     }
                 }
@@ -290,6 +303,7 @@ pub fn trace<G: DirectionGuide>(
             });
         }
         prev_delta = next.delta;
+        prev_guided = here.is_some();
         prev_pdf = next.pdf;
         prev_p = si.p;
         ray = si.spawn_ray(next.wo);

@@ -5,6 +5,7 @@
 
 use super::bpt::{Bpt, PixelPaths, PixelScratch};
 use super::mis::{AllStrategies, Heuristic};
+use super::mutation::{factor, Strategy};
 use super::params::{ParamKind, ParamSpec, Params};
 use super::strategies;
 use super::vertex::{Vertex, VertexKind};
@@ -88,7 +89,8 @@ pub fn resampled_join(scene: &Scene, pool: &Candidates, draw: &Draw, at: &Join) 
     let w =
         AllStrategies { heuristic: at.heuristic, light_sums: pool.sums(draw.candidate), camera_sums: at.camera_sums };
     let n = pool.candidates() as f32;
-    strategies::connect_vertices(scene, light, at.s, at.camera, at.t, &w) / (n * draw.probability)
+    strategies::connect_vertices(scene, light, at.s, at.camera, at.t, &w) * factor(Strategy::Resampled)
+        / (n * draw.probability)
 }
 
 /// The report line of the iterations' table builds: `places` names where tables are

@@ -3,6 +3,7 @@
 //! estimators reuse them with light vertices they resample.
 
 use super::mis::{self, Heuristic, Junction, PathWeight, StrategySet, SubPath};
+use super::mutation::{factor, Strategy};
 use super::vertex::{Joined, LensHit, Vertex, VertexKind};
 use crate::color::Rgb;
 use crate::geometry::{offset_origin, Ray};
@@ -65,7 +66,7 @@ pub fn camera_hits_light(scene: &Scene, camera: &[Vertex], t: usize, w: &impl Pa
             }
             let li = scene.mesh_light[z.si.mesh as usize].expect("emissive mesh has a light");
             let lv = z.as_light(li);
-            z.beta * le * w.weight(scene, SubPath::EMPTY, SubPath { last: Some(&lv), ..prefix })
+            z.beta * le * w.weight(scene, SubPath::EMPTY, SubPath { last: Some(&lv), ..prefix }) * factor(Strategy::Hit)
         }
         VertexKind::Escaped => {
             let mut sum = Rgb::BLACK;
@@ -77,7 +78,7 @@ pub fn camera_hits_light(scene: &Scene, camera: &[Vertex], t: usize, w: &impl Pa
                 let lv = z.as_infinite_light(li);
                 sum += z.beta * le * w.weight(scene, SubPath::EMPTY, SubPath { last: Some(&lv), ..prefix });
             }
-            sum
+            sum * factor(Strategy::Hit)
         }
         _ => Rgb::BLACK,
     }
@@ -118,7 +119,7 @@ pub fn connect_to_light(scene: &Scene, camera: &[Vertex], t: usize, rng: &mut Rn
     let camera_end = z.end_densities(scene, &jz, &camera[t - 2], &lv);
     let junction = Junction { light_end: None, camera_end: Some(camera_end) };
     let weight = w.weight_joined(scene, SubPath::new(&[], Some(&lv)), SubPath::new(&camera[..t], None), &junction);
-    z.beta * jz.f * ls.radiance * (weight / (pmf * ls.pdf))
+    z.beta * jz.f * ls.radiance * (weight / (pmf * ls.pdf) * factor(Strategy::Nee))
 }
 
 /// t = 1: connects light vertex `light[s − 1]` to a sampled lens point. Returns the film
@@ -156,13 +157,14 @@ pub fn connect_to_camera(
     };
     let pixels = (scene.settings.width * scene.settings.height) as f32;
     let weight = w.weight_joined(scene, SubPath::new(&light[..s], None), SubPath::new(&[], Some(&lens)), &junction);
-    Some((cs.raster, throughput * (cs.importance * pixels / cs.pdf * weight)))
+    Some((cs.raster, throughput * (cs.importance * pixels / cs.pdf * weight * factor(Strategy::LightTrace))))
 }
 
 /// t = 0: a light sub-path that passed through the aperture.
 pub fn light_hits_lens(scene: &Scene, light: &[Vertex], hit: &LensHit, w: &impl PathWeight) -> Rgb {
     let stored = &light[..hit.light_vertices as usize];
-    hit.vertex.beta * w.weight(scene, SubPath::new(stored, Some(&hit.vertex)), SubPath::EMPTY)
+    hit.vertex.beta
+        * (w.weight(scene, SubPath::new(stored, Some(&hit.vertex)), SubPath::EMPTY) * factor(Strategy::LightTrace))
 }
 
 /// The edge joining two surface vertices, light-side `y` (reached from `y_prev`) and
@@ -211,5 +213,6 @@ pub fn connect_vertices(
         light_end: Some(y.end_densities(scene, &e.light_end, &light[s - 2], z)),
         camera_end: Some(z.end_densities(scene, &e.camera_end, &camera[t - 2], y)),
     };
-    c * w.weight_joined(scene, SubPath::new(&light[..s], None), SubPath::new(&camera[..t], None), &junction)
+    c * (w.weight_joined(scene, SubPath::new(&light[..s], None), SubPath::new(&camera[..t], None), &junction)
+        * factor(Strategy::Connection))
 }

@@ -118,6 +118,9 @@ pub struct Comparison {
     /// Per-channel z-scores of the image mean against the reference mean.
     pub z: [f64; 3],
     pub mean: [f64; 3],
+    /// Per channel, the variance of our averaged image mean and of the reference's mean.
+    pub var: [f64; 3],
+    pub var_ref: [f64; 3],
 }
 
 /// Compares films `fa`, `fb` (independent seeds, `spp` each) with `reference`, whose mean is
@@ -133,6 +136,7 @@ pub fn compare(fa: &Film, fb: &Film, reference: &Image, reference_variance: &Ima
     let npix = reference_variance.pixels.len() as f64;
     let mut z = [0.0; 3];
     let mut mean = [0.0; 3];
+    let (mut vars, mut vars_ref) = ([0.0; 3], [0.0; 3]);
     for c in 0..3 {
         let m: f64 = ba.iter().zip(&bb).map(|(x, y)| 0.5 * (x[c] + y[c])).sum::<f64>() / nb;
         // Variance of the averaged render's mean, from the per-pixel sample variances and
@@ -145,8 +149,138 @@ pub fn compare(fa: &Film, fb: &Film, reference: &Image, reference_variance: &Ima
         let var_ref = reference_variance.pixels.iter().map(|p| p.to_array()[c] as f64).sum::<f64>() / (npix * npix);
         z[c] = (m - ref_mean[c]).abs() / (var + var_ref).sqrt().max(1e-12 * ref_mean[c].abs().max(1e-6));
         mean[c] = m;
+        (vars[c], vars_ref[c]) = (var, var_ref);
     }
-    Comparison { t, z, mean }
+    Comparison { t, z, mean, var: vars, var_ref: vars_ref }
+}
+
+/// How hard the statistical tests look. The default tier gives each estimator the samples
+/// its own variance needs to see a bias of `target_bias` of the image mean (in at least
+/// 99 % of runs, see [`POWER_Z`]), between `pilot_spp` and `max_spp`; `--full`
+/// (`SKELIGHT_TEST_TIER=full`, set by `scripts/test.sh --full`) starts where the suite used
+/// to stand (128 samples) and looks for a 4× smaller bias.
+#[derive(Clone, Copy, Debug)]
+pub struct Tier {
+    pub name: &'static str,
+    /// Relative bias of the image mean the test must see.
+    pub target_bias: f64,
+    pub pilot_spp: u32,
+    pub max_spp: u32,
+}
+
+pub fn tier() -> Tier {
+    match std::env::var("SKELIGHT_TEST_TIER").as_deref() {
+        Ok("full") => Tier { name: "full", target_bias: 0.005, pilot_spp: 128, max_spp: 512 },
+        Ok("default") | Err(_) => Tier { name: "default", target_bias: 0.02, pilot_spp: 8, max_spp: 128 },
+        Ok(other) => panic!("SKELIGHT_TEST_TIER={other}: expected default or full"),
+    }
+}
+
+/// A bias of b standard errors is seen (z > [`Z_LIMIT`]) in 99 % of runs when
+/// b ≥ Z_LIMIT + POWER_Z (the normal's 99th percentile).
+pub const POWER_Z: f64 = 2.326;
+
+/// What a test against a reference decided, and what it could have seen.
+#[derive(Debug)]
+pub struct Verdict {
+    pub comparison: Comparison,
+    pub ok: bool,
+    /// Samples per pixel of each of the two renders judged.
+    pub spp: u32,
+    /// The smallest bias of the image mean, relative to it, that this test sees in 99 % of
+    /// runs (the worst channel carrying at least 5 % of the brightest's mean).
+    pub detectable_bias: f64,
+    /// The reference's share of the variance of the difference of means: the floor no
+    /// sample count of ours can lower.
+    pub reference_share: f64,
+    /// Whether the first look failed and a second one, at 4× the samples, decided.
+    pub looked_again: bool,
+}
+
+impl Verdict {
+    pub fn line(&self) -> String {
+        let c = &self.comparison;
+        format!(
+            "T {:6.2}  z {:5.2} {:5.2} {:5.2}  mean {:.4} {:.4} {:.4}  {:4} spp{}  sees {:.2} % bias (reference {:4.1} % of the noise)",
+            c.t,
+            c.z[0],
+            c.z[1],
+            c.z[2],
+            c.mean[0],
+            c.mean[1],
+            c.mean[2],
+            self.spp,
+            if self.looked_again { " (second look)" } else { "" },
+            100.0 * self.detectable_bias,
+            100.0 * self.reference_share
+        )
+    }
+}
+
+/// Relative bias of the image mean seen in 99 % of runs at `spp`, given a comparison at
+/// `spp_measured` (our variance scales as 1/spp, the reference's does not), and the share of
+/// the reference in that noise.
+fn power_at(c: &Comparison, ref_mean: [f64; 3], spp_measured: u32, spp: u32) -> (f64, f64) {
+    let brightest = ref_mean.iter().fold(0.0f64, |a, &m| a.max(m.abs()));
+    let (mut worst, mut share) = (0.0f64, 0.0f64);
+    for ((&m, &v), &v_ref) in ref_mean.iter().zip(&c.var).zip(&c.var_ref) {
+        if m.abs() < 0.05 * brightest || brightest == 0.0 {
+            continue;
+        }
+        let var = v * spp_measured as f64 / spp as f64 + v_ref;
+        let d = (Z_LIMIT + POWER_Z) * var.sqrt() / m.abs();
+        if d >= worst {
+            (worst, share) = (d, v_ref / var.max(1e-300));
+        }
+    }
+    (worst, share)
+}
+
+/// Judges an estimator against a reference image (its mean `ref_mean`, per-pixel variance
+/// `noise`): two renders (seeds `seeds`) at the tier's pilot count, within `spp_range`,
+/// tell the estimator's variance; the renders are then taken to the count at which a bias
+/// of the tier's target is seen (doubling, at most the tier's `max_spp` or the range's end). The decision to add samples
+/// depends on the spread alone, not on the difference of means, so it does not bias the test.
+/// Rare bright paths (a caustic seen in a mirror, which only one strategy finds) make the
+/// noise heavy-tailed: at few samples both renders usually miss them and the block
+/// differences underestimate the variance. A failure is looked at again with 4× the
+/// samples and fresh seeds, which tells this apart from a bias, whose T grows with the
+/// sample count.
+pub fn judge_against_reference(
+    mut render: impl FnMut(u32, u64) -> Film,
+    reference: &Image,
+    noise: &Image,
+    ref_mean: [f64; 3],
+    spp_range: (u32, u32),
+    seeds: (u64, u64),
+) -> Verdict {
+    let tier = tier();
+    let (min_spp, max_spp) = (spp_range.0, spp_range.1.min(tier.max_spp).max(spp_range.0));
+    let mut judge = |spp: u32, seeds: (u64, u64)| {
+        let (a, b) = (render(spp, seeds.0), render(spp, seeds.1));
+        let c = compare(&a, &b, reference, noise, ref_mean);
+        let ok = c.t < T_LIMIT && c.z.iter().all(|z| *z < Z_LIMIT);
+        (c, ok)
+    };
+    let mut spp = tier.pilot_spp.clamp(min_spp, max_spp);
+    let (mut c, mut ok) = judge(spp, seeds);
+    // The spread at few samples can underestimate heavy tails: the count is checked again at
+    // each step and raised until the bias is seen or the tier's most samples are reached.
+    while spp < max_spp && power_at(&c, ref_mean, spp, spp).0 > tier.target_bias {
+        let measured = spp;
+        while spp < max_spp && power_at(&c, ref_mean, measured, spp).0 > tier.target_bias {
+            spp = (2 * spp).min(max_spp);
+        }
+        (c, ok) = judge(spp, seeds);
+    }
+    let mut looked_again = false;
+    if !ok {
+        looked_again = true;
+        spp *= 4;
+        (c, ok) = judge(spp, (seeds.0 ^ 0x0051_7CC1_B727, seeds.1 ^ 0x2545_F491_4F6C));
+    }
+    let (detectable_bias, reference_share) = power_at(&c, ref_mean, spp, spp);
+    Verdict { comparison: c, ok, spp, detectable_bias, reference_share, looked_again }
 }
 
 /// Per-pixel variance of a reference made by a path tracer with `ref_spp` samples per
@@ -165,7 +299,18 @@ pub const T_LIMIT: f64 = 3.0;
 /// z limit for 3 channels × ~20 scenes per estimator: a Gaussian exceeds 4.5 with p ≈ 7e-6.
 pub const Z_LIMIT: f64 = 4.5;
 
-/// Every estimator of the registry with the samples per pixel the agreement tests give it:
+/// Samples per pixel for an agreement test that the full tier runs at `full`: a quarter of
+/// it in the default tier (4 at least). Each such test prints the difference it sees.
+pub fn tier_spp(full: u32) -> u32 {
+    if tier().name == "full" {
+        full
+    } else {
+        (full / 4).max(4)
+    }
+}
+
+/// Every estimator of the registry with the samples per pixel the agreement tests give it
+/// (in the full tier; [`tier_spp`] of it in the default one):
 /// `pt`'s count by default, more where a sample is cheaper and noisier (light tracing),
 /// fewer where it is dearer and less noisy (BPT). A new estimator is tested everywhere these
 /// lists are used without touching the tests.
@@ -178,7 +323,7 @@ pub fn every_estimator() -> Vec<(&'static str, u32)> {
                 "ibpt" => 128,
                 _ => 256,
             };
-            (name, spp)
+            (name, tier_spp(spp))
         })
         .collect()
 }
@@ -207,7 +352,15 @@ pub fn estimators_agree(scene: &Scene, runs: &[(&str, u32)]) {
         let t = pair_block_t(a0, b0, a, b);
         for c in 0..3 {
             let z = (m0[c] - m[c]).abs() / (s0[c] * s0[c] + se[c] * se[c]).sqrt();
-            println!("channel {c}: {first} {:.4} ± {:.4}, {name} {:.4} ± {:.4}, z {z:.2}", m0[c], s0[c], m[c], se[c]);
+            let sees = (Z_LIMIT + POWER_Z) * (s0[c] * s0[c] + se[c] * se[c]).sqrt() / m0[c].abs().max(1e-12);
+            println!(
+                "channel {c}: {first} {:.4} ± {:.4}, {name} {:.4} ± {:.4}, z {z:.2}, sees a {:.2} % difference",
+                m0[c],
+                s0[c],
+                m[c],
+                se[c],
+                100.0 * sees
+            );
             assert!(z < Z_LIMIT, "channel {c}: {first} {} ± {} vs {name} {} ± {}", m0[c], s0[c], m[c], se[c]);
         }
         println!("{first} vs {name}: block T {t:.2}");
@@ -273,5 +426,85 @@ pub fn per_distribution_parts_add_up(scene: &Scene, estimator: &str, params: &[(
         let sum = parts.iter().fold(skelight::color::Rgb::BLACK, |acc, (_, img)| acc + img.pixels[i]);
         let d = (sum - *p).luminance().abs();
         assert!(d <= 1e-4 * p.luminance().abs() + 1e-6, "pixel {i}: parts {sum:?} vs {p:?}");
+    }
+}
+
+/// The conformance manifest's entries: name, Mitsuba's image mean and its sample count.
+pub fn manifest(dir: &std::path::Path) -> Vec<(String, [f64; 3], u32)> {
+    let text = std::fs::read_to_string(dir.join("refs/manifest.json")).expect("manifest.json");
+    // Minimal reader for {"name": {"mean": [r, g, b], ..., "spp": n}, ...}.
+    let mut out = Vec::new();
+    let mut rest = text.as_str();
+    while let Some(i) = rest.find("\"mean\"") {
+        let head = &rest[..i];
+        let name_end = head.rfind("\": {").expect("entry name");
+        let name_start = head[..name_end].rfind('"').expect("entry name") + 1;
+        let name = head[name_start..name_end].to_string();
+        let body = &rest[i..];
+        let lb = body.find('[').unwrap();
+        let rb = body.find(']').unwrap();
+        let v: Vec<f64> = body[lb + 1..rb].split(',').map(|s| s.trim().parse().unwrap()).collect();
+        let spp_at = body.find("\"spp\"").unwrap();
+        let spp: u32 = body[spp_at + 6..]
+            .trim_start_matches([':', ' '])
+            .split(|c: char| !c.is_ascii_digit())
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        out.push((name, [v[0], v[1], v[2]], spp));
+        rest = &body[rb..];
+    }
+    out
+}
+
+/// The seeds of the conformance suite's two renders.
+pub const CONFORMANCE_SEEDS: (u64, u64) = (0x1234_5678, 0x9E37_79B9_7F4A);
+
+/// A conformance scene with what judging an estimator on it needs: Mitsuba's reference,
+/// its mean, and the reference's per-pixel noise (estimated once, from our path tracer).
+pub struct ConformanceScene {
+    pub name: String,
+    pub scene: Scene,
+    pub reference: Image,
+    pub noise: Image,
+    pub ref_mean: [f64; 3],
+}
+
+impl ConformanceScene {
+    pub fn new(dir: &std::path::Path, name: String, scene: Scene, ref_mean: [f64; 3], ref_spp: u32) -> Self {
+        let reference = Image::load(&dir.join("refs").join(format!("{name}.exr"))).expect("reference");
+        let noise = reference_noise(&scene, 16, ref_spp);
+        ConformanceScene { name, scene, reference, noise, ref_mean }
+    }
+
+    /// The scene of the manifest whose name starts with `prefix` (`c01`).
+    pub fn load(prefix: &str) -> Self {
+        let dir = shared_dir().join("conformance");
+        let (name, ref_mean, ref_spp) =
+            manifest(&dir).into_iter().find(|e| e.0.starts_with(prefix)).unwrap_or_else(|| panic!("no {prefix} scene"));
+        let scene =
+            load(&dir.join("scenes").join(format!("{name}.xml")), &[]).unwrap_or_else(|e| panic!("{name}: {e}"));
+        Self::new(&dir, name, scene, ref_mean, ref_spp)
+    }
+
+    /// [`judge_against_reference`] for a CPU estimator. Estimators that learn from pass to
+    /// pass are judged on three passes at least (16 samples each at 128×128 for `skelpt`, 4
+    /// for `skelbpt`), so that what they learnt is used.
+    pub fn judge(&self, integrator: &mut dyn Integrator, seeds: (u64, u64)) -> Verdict {
+        let (w, h) = (self.scene.settings.width, self.scene.settings.height);
+        let min_spp = if integrator.learns_across_passes() {
+            3 * skelight::integrator::samples_per_pass(integrator, w, h)
+        } else {
+            1
+        };
+        judge_against_reference(
+            |spp, seed| render_spp(&self.scene, integrator, spp, seed),
+            &self.reference,
+            &self.noise,
+            self.ref_mean,
+            (min_spp, u32::MAX),
+            seeds,
+        )
     }
 }
