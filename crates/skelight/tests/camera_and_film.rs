@@ -38,7 +38,7 @@ fn every_estimator_sees_the_same_near_clipped_cornell_box() {
             }
         };
         let scene = edited_conformance_scene(name, edit, 48, 48);
-        estimators_agree(&scene, &every_estimator());
+        estimators_agree(&scene, &every_estimator_at_full_count());
     }
 }
 
