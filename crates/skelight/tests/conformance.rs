@@ -6,7 +6,7 @@ mod common;
 use std::path::Path;
 
 use common::*;
-use skelight::integrator::{samples_per_pass, Integrator};
+use skelight::integrator::Integrator;
 use skelight::scene::load::load;
 
 /// References that differ from the physically correct image, with the evidence: for each,
@@ -117,8 +117,7 @@ fn check_against_corrected_mitsuba(
     // statistic. As judge_against_reference: from the tier's pilot count, doubled until the
     // tier's bias is seen (a choice from the spread alone).
     let t = tier();
-    let min_spp = samples_per_pass(integrator, scene.settings.width, scene.settings.height) * 3;
-    let mut spp = if integrator.learns_across_passes() { t.pilot_spp.max(min_spp) } else { t.pilot_spp };
+    let mut spp = t.pilot_spp.max(fewest_spp(integrator, &scene));
     let (m, z) = loop {
         let a = render_spp(&scene, integrator, spp, 0x1234_5678).image();
         let b = render_spp(&scene, integrator, spp, 0x9E37_79B9_7F4A).image();

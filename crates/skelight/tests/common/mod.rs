@@ -500,12 +500,7 @@ impl ConformanceScene {
     /// pass are judged on three passes at least (16 samples each at 128×128 for `skelpt`, 4
     /// for `skelbpt`), so that what they learnt is used.
     pub fn judge(&self, integrator: &mut dyn Integrator, seeds: (u64, u64)) -> Verdict {
-        let (w, h) = (self.scene.settings.width, self.scene.settings.height);
-        let min_spp = if integrator.learns_across_passes() {
-            3 * skelight::integrator::samples_per_pass(integrator, w, h)
-        } else {
-            1
-        };
+        let min_spp = fewest_spp(integrator, &self.scene);
         judge_against_reference(
             |spp, seed| render_spp(&self.scene, integrator, spp, seed),
             &self.reference,
@@ -514,5 +509,15 @@ impl ConformanceScene {
             (min_spp, u32::MAX),
             seeds,
         )
+    }
+}
+
+/// The fewest samples per pixel an estimator is judged on in `scene`: three passes for those
+/// that learn from pass to pass (so that what they learnt is judged), one otherwise.
+pub fn fewest_spp(integrator: &dyn Integrator, scene: &Scene) -> u32 {
+    if integrator.learns_across_passes() {
+        3 * skelight::integrator::samples_per_pass(integrator, scene.settings.width, scene.settings.height)
+    } else {
+        1
     }
 }
