@@ -87,6 +87,27 @@ pub struct Memory {
     pub path_state_bytes: u64,
 }
 
+/// Which passes a render of `estimator` under a launch shape runs, and so which megakernels
+/// it compiles: lavapipe takes seconds to compile each, and a path tracer has no light pass,
+/// the fused instant-BPT kernel none apart from the camera's, the wavefront its own kernels.
+struct Kernels {
+    /// Light sub-paths are traced (lt, ibpt unfused).
+    light_pass: bool,
+    /// The camera megakernel runs (no wavefront).
+    camera: bool,
+    /// The light megakernel runs (a light pass, not as a wavefront).
+    light: bool,
+}
+
+impl Kernels {
+    fn of(estimator: Estimator, shape: &LaunchShape) -> Kernels {
+        let fused = shape.fused && !shape.wavefront && estimator == Estimator::Ibpt;
+        let light_pass = estimator != Estimator::Pt && !fused;
+        let light = light_pass && !(shape.wavefront && shape.wavefront_light);
+        Kernels { light_pass, camera: !shape.wavefront, light }
+    }
+}
+
 /// A GPU renderer bound to one scene and estimator.
 pub struct GpuRenderer {
     device: wgpu::Device,
@@ -95,8 +116,9 @@ pub struct GpuRenderer {
     module: wgpu::ShaderModule,
     nodes: wgpu::Buffer,
     tris: wgpu::Buffer,
-    camera_pass: wgpu::ComputePipeline,
-    light_pass: wgpu::ComputePipeline,
+    /// The megakernels, compiled only where a render dispatches them (see [`Kernels`]).
+    camera_pass: Option<wgpu::ComputePipeline>,
+    light_pass: Option<wgpu::ComputePipeline>,
     estimator: Estimator,
     bind_group: wgpu::BindGroup,
     params: Params,
@@ -348,8 +370,9 @@ impl GpuRenderer {
         let pipeline = |entry: &str, constants: &[(&str, f64)]| pipeline_with(&pipeline_layout, entry, constants);
         // The fused instant-BPT kernel is the camera pass with its `FUSED` constant set.
         let fused = shape.fused && estimator == Estimator::Ibpt;
-        let camera_pass = pipeline("camera_main", &[("FUSED", if fused { 1.0 } else { 0.0 })]);
-        let light_pass = pipeline("light_main", &[]);
+        let kernels = Kernels::of(estimator, &shape);
+        let camera_pass = kernels.camera.then(|| pipeline("camera_main", &[("FUSED", if fused { 1.0 } else { 0.0 })]));
+        let light_pass = kernels.light.then(|| pipeline("light_main", &[]));
         let wavefront = if shape.wavefront {
             let tile = (shape.tile.min(flat.params.width), shape.tile.min(flat.params.height));
             let light = shape.wavefront_light && estimator != Estimator::Pt;
@@ -502,9 +525,8 @@ impl GpuRenderer {
             encoder.clear_buffer(&self.splats, 0, None);
             encoder.clear_buffer(&self.counters, 0, None);
             self.queue.submit([encoder.finish()]);
-            let LaunchShape { tile, samples_per_dispatch, workgroup: (wx, wy), slices, fused, .. } = self.shape;
-            let fused = fused && self.wavefront.is_none();
-            let light_pass = self.estimator != Estimator::Pt && !(fused && self.estimator == Estimator::Ibpt);
+            let LaunchShape { tile, samples_per_dispatch, workgroup: (wx, wy), slices, .. } = self.shape;
+            let light_pass = Kernels::of(self.estimator, &self.shape).light_pass;
             for offset in (0..n).step_by(samples_per_dispatch as usize) {
                 let samples = samples_per_dispatch.min(n - offset);
                 for y0 in (0..h).step_by(tile as usize) {
@@ -537,7 +559,7 @@ impl GpuRenderer {
                                     )?;
                                 }
                             }
-                            if !light_pass || light_wavefront {
+                            if self.light_pass.is_none() {
                                 continue;
                             }
                         }
@@ -546,12 +568,8 @@ impl GpuRenderer {
                         {
                             let mut pass = encoder.begin_compute_pass(&Default::default());
                             pass.set_bind_group(0, &self.bind_group, &[]);
-                            if self.wavefront.is_none() {
-                                pass.set_pipeline(&self.camera_pass);
-                                pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
-                            }
-                            if light_pass {
-                                pass.set_pipeline(&self.light_pass);
+                            for kernel in [&self.camera_pass, &self.light_pass].into_iter().flatten() {
+                                pass.set_pipeline(kernel);
                                 pass.dispatch_workgroups(tw.div_ceil(wx), th.div_ceil(wy), depth);
                             }
                         }

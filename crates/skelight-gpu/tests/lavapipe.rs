@@ -8,7 +8,7 @@
 mod common;
 
 use common::{
-    batch_block_t, batch_mean_se, judge_against_reference, reference_noise, render_spp, shared_dir, T_LIMIT, Z_LIMIT,
+    batch_block_t, batch_mean_se, conformance_noise, judge_against_reference, render_spp, shared_dir, T_LIMIT, Z_LIMIT,
 };
 use skelight::film::Film;
 use skelight::imageio::Image;
@@ -374,7 +374,7 @@ fn matches_mitsuba(estimator: Estimator) {
         let ref_mean = [mean[0], mean[1], mean[2]];
         let ref_spp = entry["spp"].as_u64().unwrap() as u32;
         let reference = Image::load(&dir.join("refs").join(format!("{name}.exr"))).unwrap();
-        let noise = reference_noise(&scene, 16, ref_spp);
+        let noise = conformance_noise(&dir.join("scenes").join(format!("{name}.xml")), &scene, ref_spp);
         // As the CPU conformance test, at one group of the device's 16 samples (lavapipe's
         // minutes are the suite's dearest): each line states the bias it sees; a second look
         // at 4× the samples before a failure. The CPU's estimators carry the 2 % goal.

@@ -171,7 +171,7 @@ pub struct Tier {
 pub fn tier() -> Tier {
     match std::env::var("SKELIGHT_TEST_TIER").as_deref() {
         Ok("full") => Tier { name: "full", target_bias: 0.005, pilot_spp: 128, max_spp: 512 },
-        Ok("default") | Err(_) => Tier { name: "default", target_bias: 0.02, pilot_spp: 8, max_spp: 128 },
+        Ok("default") | Err(_) => Tier { name: "default", target_bias: 0.02, pilot_spp: 4, max_spp: 128 },
         Ok(other) => panic!("SKELIGHT_TEST_TIER={other}: expected default or full"),
     }
 }
@@ -291,6 +291,34 @@ pub fn reference_noise(scene: &Scene, spp: u32, ref_spp: u32) -> Image {
     let var = render_spp(scene, pt.as_mut(), spp, 0x005E_ED0F_4E5E).variance_image();
     let scale = spp as f32 / ref_spp as f32;
     Image { pixels: var.pixels.iter().map(|p| *p * scale).collect(), ..var }
+}
+
+/// [`reference_noise`] of a conformance scene at 16 spp, made once per scene and test build:
+/// every estimator's test (one process each under nextest) judges against the same reference,
+/// so the path tracer's render that estimates its noise is kept in the tests' scratch folder
+/// (`target/tmp`), keyed by the scene file's contents and the test binary's build time (a
+/// changed scene, or changed code, renders it again). Writes are atomic: two processes that
+/// make it at once write the same image.
+pub fn conformance_noise(scene_file: &std::path::Path, scene: &Scene, ref_spp: u32) -> Image {
+    use std::hash::{Hash, Hasher};
+    let mut key = std::collections::hash_map::DefaultHasher::new();
+    std::fs::read(scene_file).unwrap_or_else(|e| panic!("{}: {e}", scene_file.display())).hash(&mut key);
+    let exe = std::env::current_exe().ok().and_then(|e| std::fs::metadata(e).ok()?.modified().ok());
+    (exe, ref_spp, scene.settings.max_depth, scene.settings.width, scene.settings.height).hash(&mut key);
+    let stem = scene_file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join("reference-noise")
+        .join(format!("{stem}-{:016x}.exr", key.finish()));
+    if let Ok(noise) = Image::load(&path) {
+        if (noise.width, noise.height) == (scene.settings.width, scene.settings.height) {
+            return noise;
+        }
+    }
+    let noise = reference_noise(scene, 16, ref_spp);
+    if std::fs::create_dir_all(path.parent().unwrap()).is_ok() {
+        let _ = noise.save_exr(&path);
+    }
+    noise
 }
 
 /// T limit: the README's validation found 0.7–1.9 for Mitsuba against itself and 22 for a
@@ -482,7 +510,7 @@ pub struct ConformanceScene {
 impl ConformanceScene {
     pub fn new(dir: &std::path::Path, name: String, scene: Scene, ref_mean: [f64; 3], ref_spp: u32) -> Self {
         let reference = Image::load(&dir.join("refs").join(format!("{name}.exr"))).expect("reference");
-        let noise = reference_noise(&scene, 16, ref_spp);
+        let noise = conformance_noise(&dir.join("scenes").join(format!("{name}.xml")), &scene, ref_spp);
         ConformanceScene { name, scene, reference, noise, ref_mean }
     }
 
