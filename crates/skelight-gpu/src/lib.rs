@@ -375,7 +375,7 @@ impl GpuRenderer {
         let light_pass = kernels.light.then(|| pipeline("light_main", &[]));
         let wavefront = if shape.wavefront {
             let tile = (shape.tile.min(flat.params.width), shape.tile.min(flat.params.height));
-            let light = shape.wavefront_light && estimator != Estimator::Pt;
+            let light = kernels.light_pass && shape.wavefront_light;
             let pipeline = |l: &wgpu::PipelineLayout, e: &str| pipeline_with(l, e, &[]);
             Some(wavefront::Wavefront::new(&device, &layout, tile, shape.slices, light, &pipeline)?)
         } else {
