@@ -31,18 +31,6 @@ pub fn incoherent_rays(tris: &[BuildTriangle], n: usize, seed: u64) -> Vec<Ray> 
         .collect()
 }
 
-/// One ray through each pixel's centre of `camera` (its own resolution), row by row.
-pub fn pixel_centre_rays(camera: &skelight::camera::Camera) -> Vec<Ray> {
-    let w = camera.width;
-    (0..w * camera.height)
-        .into_par_iter()
-        .map(|i| {
-            let raster = skelight::math::vec2((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-            camera.generate_ray(raster, skelight::math::vec2(0.5, 0.5))
-        })
-        .collect()
-}
-
 pub struct RayResult {
     pub build: Duration,
     pub closest_mrays: f64,

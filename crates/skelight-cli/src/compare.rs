@@ -205,39 +205,62 @@ pub fn csv(series: &[Series]) -> String {
     s
 }
 
-fn json_num(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v:e}")
-    } else {
-        "null".into()
-    }
-}
-
+/// `errors.json`: the study's settings and every estimator's error curve (non-finite
+/// values as `null`).
 pub fn json(study: &Study) -> String {
-    let mut s = format!(
-        "{{\"scene\": {:?}, \"reference\": {:?}, \"time_s\": {}, \"seed\": {}, \"threads\": {}, \"series\": [",
-        study.scene_label,
-        study.reference_label,
-        study.time.as_secs_f64(),
-        study.seed,
-        study.threads
-    );
-    for (i, se) in study.series.iter().enumerate() {
-        let pts: Vec<String> = se
-            .points
-            .iter()
-            .map(|p| format!("{{\"iteration\": {}, \"spp\": {}, \"seconds\": {}, \"mae\": {}, \"rmse\": {}, \"relmse\": {}, \"nrmse\": {}}}", p.iteration, p.spp, json_num(p.seconds), json_num(p.metrics.mae), json_num(p.metrics.rmse), json_num(p.metrics.relmse), json_num(p.metrics.nrmse)))
-            .collect();
-        let _ = write!(
-            s,
-            "{}{{\"integrator\": {:?}, \"points\": [{}]}}",
-            if i > 0 { ", " } else { "" },
-            se.name,
-            pts.join(", ")
-        );
+    #[derive(serde::Serialize)]
+    struct Point {
+        iteration: usize,
+        spp: u32,
+        seconds: f64,
+        mae: f64,
+        rmse: f64,
+        relmse: f64,
+        nrmse: f64,
     }
-    s.push_str("]}\n");
-    s
+    #[derive(serde::Serialize)]
+    struct Series<'a> {
+        integrator: &'a str,
+        points: Vec<Point>,
+    }
+    #[derive(serde::Serialize)]
+    struct Errors<'a> {
+        scene: &'a str,
+        reference: &'a str,
+        time_s: f64,
+        seed: u64,
+        threads: usize,
+        series: Vec<Series<'a>>,
+    }
+    let series = study
+        .series
+        .iter()
+        .map(|se| Series {
+            integrator: &se.name,
+            points: se
+                .points
+                .iter()
+                .map(|p| Point {
+                    iteration: p.iteration,
+                    spp: p.spp,
+                    seconds: p.seconds,
+                    mae: p.metrics.mae,
+                    rmse: p.metrics.rmse,
+                    relmse: p.metrics.relmse,
+                    nrmse: p.metrics.nrmse,
+                })
+                .collect(),
+        })
+        .collect();
+    let errors = Errors {
+        scene: &study.scene_label,
+        reference: &study.reference_label,
+        time_s: study.time.as_secs_f64(),
+        seed: study.seed,
+        threads: study.threads,
+        series,
+    };
+    serde_json::to_string_pretty(&errors).expect("plain values serialize") + "\n"
 }
 
 /// Region (x, y, size) around the block where the first estimator errs most.

@@ -119,7 +119,7 @@ pub(crate) fn bench_rays(scenes: &[std::path::PathBuf], n: usize, rounds: usize)
             ((n as f64 * aspect).sqrt().round() as usize).max(1),
             ((n as f64 / aspect).sqrt().round() as usize).max(1),
         );
-        let primary = crate::bench::pixel_centre_rays(&scene.camera.with_resolution(w, h));
+        let primary = scene.camera.with_resolution(w, h).pixel_centre_rays();
         let sets = [("incoherent", crate::bench::incoherent_rays(&tris, n, 1)), ("primary", primary)];
         let mut adapter = String::new();
         for (set, rays) in &sets {

@@ -5,19 +5,19 @@ mod compare;
 mod gpu_cmd;
 mod render_cmd;
 mod skeleton;
-mod skeleton_pictures;
 
-use render_cmd::{print_preparation, print_report, summary, write_guidance_pictures, write_outputs, Job, RenderArgs};
+use render_cmd::{print_preparation, print_report, summary, write_debug_files, write_outputs, Job, RenderArgs};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
+use skelight::estimators::registry;
 use skelight::eval;
 use skelight::imageio::Image;
-use skelight::integrator::mis::Heuristic;
 use skelight::integrator::{self, RenderOptions};
 use skelight::job::JobSpec;
+use skelight::paths::mis::Heuristic;
 use skelight::scene::{self, Scene};
 use skelight_shape::pipeline::{AnalysisSettings, Resolution};
 use skelight_shape::thinning::EdgeConstraint;
@@ -402,8 +402,8 @@ fn bench(what: BenchKind) -> Result<()> {
             if device == "gpu" {
                 return gpu_cmd::bench(&path, &scene, &name, spp);
             }
-            let (estimator, params) = integrator::registry::parse_spec(&name)?;
-            let mut integrator = integrator::registry::create(&estimator, &params)?;
+            let (estimator, params) = registry::parse_spec(&name)?;
+            let mut integrator = registry::create(&estimator, &params)?;
             let opts = RenderOptions { spp: Some(spp), time: None, seed: 1, threads: setup.threads };
             let r = integrator::render(&scene, integrator.as_mut(), &opts, None, |_, _| true)?;
             print_preparation(&r.preparation);
@@ -612,7 +612,7 @@ fn keep_freed_memory() {}
 /// The parsed command line; `render --help` and friends list the registry's estimators.
 fn cli() -> Cli {
     use clap::{CommandFactory, FromArgMatches};
-    let help = integrator::registry::help();
+    let help = registry::help();
     let mut command = Cli::command();
     for sub in ["render", "reference", "compare"] {
         command = command.mut_subcommand(sub, |c| c.after_long_help(help.clone()));
@@ -662,7 +662,12 @@ fn main() {
             let (w, h) = (scene.settings.width as f64, scene.settings.height as f64);
             let scale = picture_size as f64 / w.max(h);
             scene.set_resolution(((w * scale).round() as usize).max(1), ((h * scale).round() as usize).max(1));
-            let files = skeleton_pictures::write(&scene, &analysis, &output)?;
+            let mut files = Vec::new();
+            for (name, image) in skelight::guided::pictures::analysis_pictures(&scene, &analysis) {
+                let path = output.join(name);
+                image.save_png(&path, 0.0).with_context(|| format!("writing {}", path.display()))?;
+                files.push(path);
+            }
             if !quiet {
                 eprintln!("pictures: {}", files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "));
             }
@@ -671,13 +676,15 @@ fn main() {
                 if scene.lights.is_empty() {
                     eprintln!("no lights: no importance pictures");
                 } else {
-                    let n = n.to_string();
-                    let p = integrator::params::Params::new(
-                        "skelpt",
-                        integrator::skelpt::PARAMS,
-                        &[("resolution".into(), n)],
-                    )?;
-                    write_guidance_pictures(&scene, &p, &output)?;
+                    let mut skelpt = registry::create("skelpt", &[("resolution".into(), n.to_string())])?;
+                    skelpt.prepare(&scene)?;
+                    let files = write_debug_files(skelpt.as_ref(), &scene, &output)?;
+                    if files.is_empty() {
+                        eprintln!("skelpt found no lit skeleton node in this scene: nothing guides it");
+                    }
+                    for f in files {
+                        eprintln!("wrote {}", f.display());
+                    }
                 }
             }
             Ok(())
@@ -727,4 +734,9 @@ fn main() {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// `--integrator`'s help line: every estimator of the registry.
+pub(crate) fn estimator_line() -> String {
+    format!("Estimator: {} (`--help` lists them with their parameters)", registry::names().join(", "))
 }

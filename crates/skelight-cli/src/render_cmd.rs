@@ -1,24 +1,22 @@
-//! The `render` command: one render of a scene by one estimator, with the pictures that
-//! explain it (what guides skelpt, each strategy's share of bpt, each resampling
-//! distribution's share of skelbpt), and the render job `reference` shares.
+//! The `render` command: one render of a scene by one estimator, with whatever pictures the
+//! estimator offers of itself (`--debug`: [`Integrator::debug_parts`] and
+//! [`Integrator::debug_files`]), and the render job `reference` shares.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use skelight::estimators::registry;
 use skelight::imageio::Image;
 use skelight::integrator;
-use skelight::integrator::bpt::{Bpt, Recorded};
-use skelight::integrator::mis::Heuristic;
-use skelight::integrator::skelbpt::SkeletonBpt;
+use skelight::integrator::Integrator;
 use skelight::job::{JobError, JobSpec, Reference, Rendered};
+use skelight::paths::mis::Heuristic;
 use skelight::scene::Scene;
 use skelight::shard::Shard;
 
-use crate::{
-    load_scene, parse_define, parse_duration, parse_heuristic, parse_param, skeleton_pictures, write_text, SceneSetup,
-};
+use crate::{load_scene, parse_define, parse_duration, parse_heuristic, parse_param, SceneSetup};
 
 #[derive(clap::Args)]
 pub(crate) struct RenderArgs {
@@ -27,8 +25,7 @@ pub(crate) struct RenderArgs {
     /// Output image (.exr); a tone-mapped PNG is written beside it.
     #[arg(short, long, default_value = "render.exr")]
     pub(crate) output: PathBuf,
-    /// Estimator: pt, lt, bpt, ibpt, skelpt (`--help` lists them with their parameters).
-    #[arg(short, long, default_value = "pt")]
+    #[arg(short, long, default_value = "pt", help = crate::estimator_line())]
     pub(crate) integrator: String,
     /// An estimator parameter, NAME=VALUE (repeatable); overrides the scene's
     /// `<integrator>` properties when the scene names the same estimator.
@@ -57,23 +54,14 @@ pub(crate) struct RenderArgs {
     /// bpt's MIS heuristic: balance or power (as --param heuristic=…).
     #[arg(long, value_parser = parse_heuristic)]
     pub(crate) heuristic: Option<Heuristic>,
-    /// skelpt only: also write pictures of what guides it to DIR: the importance nodes and
-    /// directions over the skeleton (importance_view.png), the node each pixel's first hit
-    /// maps to (node_per_pixel.png), and importance.json.
+    /// Also write what the estimator shows of itself to DIR: the parts its image splits
+    /// into, each rendered with the same random numbers so that they add up to the full
+    /// render (bpt: each (s, t) strategy, sS_tT.exr and strategies.csv; skelbpt and icbpt:
+    /// each resampling distribution, thesis Fig. 106, NAME.exr and distributions.csv), and
+    /// pictures of its internals after the render (skelpt: importance_view.png,
+    /// node_per_pixel.png and importance.json; skelbpt: nodes_view.png).
     #[arg(long, value_name = "DIR")]
-    pub(crate) debug_skeleton: Option<PathBuf>,
-    /// bpt only: also write each (s, t) strategy's weighted contribution to DIR/sS_tT.exr
-    /// (and .png, and their means to DIR/strategies.csv). Renders once per strategy with the
-    /// same random numbers, so the images add up to the full render.
-    #[arg(long, value_name = "DIR")]
-    pub(crate) debug_strategies: Option<PathBuf>,
-    /// skelbpt and icbpt: also write the joins drawn from each resampling distribution (V, U,
-    /// C, and the fallback; icbpt's V is Georgiev's full distribution) and the strategies not resampled to DIR/NAME.exr (and .png, their
-    /// means to DIR/distributions.csv; thesis Fig. 106), rendered with the same random
-    /// numbers so that they add up to the full render, and (skelbpt) the nodes the last pass
-    /// built tables for over the skeleton (nodes_view.png).
-    #[arg(long, value_name = "DIR")]
-    pub(crate) debug_distributions: Option<PathBuf>,
+    pub(crate) debug: Option<PathBuf>,
     /// Render only shard K of N (from 0) of the --spp samples: a deterministic slice of the
     /// sample indices, written with its film and a manifest in the EXR header, so that
     /// `skelight merge` of all N shards gives the single render (up to f64 summation order;
@@ -222,7 +210,7 @@ pub(crate) fn print_preparation(p: &integrator::Preparation) {
 }
 
 /// What the estimator reports of its per-iteration work.
-pub(crate) fn print_report(integrator: &dyn integrator::Integrator) {
+pub(crate) fn print_report(integrator: &dyn Integrator) {
     for line in integrator.report() {
         eprintln!("  {line}");
     }
@@ -253,14 +241,12 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
     let device = if args.device == "gpu" { skelight::job::Device::Gpu } else { skelight::job::Device::Cpu };
     if device == skelight::job::Device::Gpu {
         crate::gpu_cmd::check_estimator(&args.integrator, &params)?;
-        if args.debug_skeleton.is_some() || args.debug_strategies.is_some() || args.debug_distributions.is_some() {
-            bail!("--device gpu writes no --debug-… pictures (they belong to CPU estimators)");
+        if args.debug.is_some() {
+            bail!("--device gpu writes no --debug pictures (they belong to the CPU estimators)");
         }
     }
-    if args.shard.is_some()
-        && (args.debug_skeleton.is_some() || args.debug_strategies.is_some() || args.debug_distributions.is_some())
-    {
-        bail!("--shard renders a slice of the samples; render the --debug-… pictures without it");
+    if args.shard.is_some() && args.debug.is_some() {
+        bail!("--shard renders a slice of the samples; render the --debug pictures without it");
     }
     let spec = JobSpec {
         integrator: args.integrator.clone(),
@@ -273,106 +259,48 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
         ..JobSpec::default()
     };
     let mut job = Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
-    if job.integrator.name() != "bpt" && (args.heuristic.is_some() || args.debug_strategies.is_some()) {
-        bail!("--heuristic and --debug-strategies apply to --integrator bpt");
+    if job.integrator.name() != "bpt" && args.heuristic.is_some() {
+        bail!("--heuristic applies to --integrator bpt");
     }
-    if let Some(dir) = &args.debug_skeleton {
-        if job.integrator.name() != "skelpt" {
-            bail!("--debug-skeleton applies to --integrator skelpt");
+    let mut has_parts = false;
+    if let Some(dir) = &args.debug {
+        match job.integrator.debug_parts(&job.scene).map_err(|e| anyhow::anyhow!("--debug: {e}"))? {
+            Some(parts) => {
+                has_parts = true;
+                skelight::debug::check_parts(&job)?;
+                let full = job.integrator.describe();
+                let quiet = args.quiet;
+                let run = |estimator| {
+                    job.integrator = estimator;
+                    job.run(quiet).map_err(|e| JobError::Invalid(format!("{e:#}")))
+                };
+                skelight::debug::render_parts(dir, parts, args.exposure, run)?;
+                let (integrator, _) = registry::create_for_scene(&args.integrator, &job.scene.settings, &params)?;
+                debug_assert_eq!(integrator.describe(), full);
+                job.integrator = integrator;
+            }
+            None => std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?,
         }
-        let (_, p, _) = integrator::registry::params_for_scene("skelpt", &job.scene.settings, &params)?;
-        write_guidance_pictures(&job.scene, &p, dir)?;
-    }
-    let heuristic = args.heuristic.unwrap_or_default();
-    let bpt = |only| -> Box<dyn integrator::Integrator> { Box::new(Bpt { max_depth: None, heuristic, only }) };
-    if let Some(dir) = &args.debug_strategies {
-        let max_depth = job.scene.settings.max_depth;
-        if !(1..=16).contains(&max_depth) {
-            bail!("--debug-strategies needs a max depth from 1 to 16 (--max-depth), not {max_depth}");
-        }
-        // Paths of k segments have k + 1 vertices: strategies s + t = k + 1.
-        let parts = (2..=max_depth as usize + 1)
-            .flat_map(|vertices| (0..=vertices).map(move |s| (s, vertices - s)))
-            .map(|(s, t)| Part {
-                stem: format!("s{s}_t{t}"),
-                columns: format!("{s},{t},{}", s + t - 2),
-                integrator: bpt(Recorded::Strategy(s, t)),
-            });
-        render_parts(&mut job, "--debug-strategies", dir, ("strategies.csv", "s,t,segments"), parts, &args)?;
-        job.integrator = bpt(Recorded::All);
-    }
-    if let Some(dir) = &args.debug_distributions {
-        let name = job.integrator.name();
-        if !matches!(name, "skelbpt" | "icbpt") {
-            bail!("--debug-distributions applies to --integrator skelbpt or icbpt");
-        }
-        let mut parts = Vec::new();
-        for only in ["V", "U", "C", "fallback", "unresampled"] {
-            let mut p = params.clone();
-            p.push(("only".into(), only.into()));
-            let (integrator, _) = integrator::registry::create_for_scene(name, &job.scene.settings, &p)?;
-            parts.push(Part { stem: only.into(), columns: only.into(), integrator });
-        }
-        render_parts(&mut job, "--debug-distributions", dir, ("distributions.csv", "part"), parts, &args)?;
-        let (integrator, _) = integrator::registry::create_for_scene(name, &job.scene.settings, &params)?;
-        job.integrator = integrator;
     }
     // The CPU's estimator, or the GPU's kernels (gpu_cmd::job_renderer).
     let mut render = crate::gpu_cmd::job_renderer(&job)?;
     let r = job.run_with(args.quiet, |job, scene, on_pass| render(job, scene, None, on_pass))?;
     let img = r.save(&args.output, args.exposure).with_context(|| format!("writing {}", args.output.display()))?;
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
-    if let Some(dir) = &args.debug_distributions {
-        let skelbpt = job.integrator.as_any().and_then(|a| a.downcast_ref::<SkeletonBpt>());
-        if let Some((guide, accepted, mapped)) = skelbpt.and_then(|s| s.nodes()) {
-            let path = skeleton_pictures::write_node_use(&job.scene, guide, accepted, mapped, dir)?;
-            eprintln!("wrote {}", path.display());
+    if let Some(dir) = &args.debug {
+        let files = write_debug_files(job.integrator.as_ref(), &job.scene, dir)?;
+        for f in &files {
+            eprintln!("wrote {}", f.display());
+        }
+        if files.is_empty() && !has_parts {
+            eprintln!("note: {} offers no --debug output for this scene", job.integrator.name());
         }
     }
     Ok(())
 }
 
-/// One part of a render split by contribution: its file stem, its CSV columns and the
-/// estimator recording only it.
-struct Part {
-    stem: String,
-    columns: String,
-    integrator: Box<dyn integrator::Integrator>,
-}
-
-/// Renders `job` once per part, each with the same random numbers (so the images add up to
-/// the full render), into DIR/STEM.exr (and .png), and their means into DIR/CSV.
-fn render_parts(
-    job: &mut Job,
-    option: &str,
-    dir: &Path,
-    (csv_name, columns): (&str, &str),
-    parts: impl IntoIterator<Item = Part>,
-    args: &RenderArgs,
-) -> Result<()> {
-    if job.opts.spp.is_none() {
-        bail!("{option} needs --spp: every part must see the same samples");
-    }
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut csv = format!("{columns},mean_r,mean_g,mean_b\n");
-    for part in parts {
-        job.integrator = part.integrator;
-        let r = job.run(args.quiet)?;
-        let m = write_outputs(&r.film, r.spp(), &dir.join(format!("{}.exr", part.stem)), args.exposure)?.mean();
-        csv += &format!("{},{},{},{}\n", part.columns, m.r, m.g, m.b);
-    }
-    write_text(&dir.join(csv_name), &csv)
-}
-
-/// Prepares skelpt with `params` for `scene` and writes the pictures of what guides it.
-pub(crate) fn write_guidance_pictures(scene: &Scene, params: &integrator::params::Params, dir: &Path) -> Result<()> {
-    use integrator::Integrator as _;
-    let mut skelpt = integrator::skelpt::SkeletonPathTracer::from_params(params);
-    skelpt.prepare(scene)?;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let files = skeleton_pictures::write_guidance(scene, &skelpt, dir)?;
-    for f in files {
-        eprintln!("wrote {}", f.display());
-    }
-    Ok(())
+/// Writes the files `integrator` (prepared for `scene`, and rendered) offers of itself into
+/// `dir`; returns their paths.
+pub(crate) fn write_debug_files(integrator: &dyn Integrator, scene: &Scene, dir: &Path) -> Result<Vec<PathBuf>> {
+    Ok(skelight::debug::write_files(integrator, scene, dir)?)
 }

@@ -98,7 +98,7 @@ pub fn space_kept(a: &Analysis) -> String {
     format!("empty space kept: {what}; {dropped} empty voxels dropped ({:.1} %)", share * 100.0)
 }
 
-pub use skelight::guided::analysis::{scene_triangles, sources, to_f64};
+pub use skelight::guided::analysis::{scene_triangles, sources};
 
 /// Which scene elements the skeleton must reach.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -121,20 +121,26 @@ pub fn anchors(scene: &Scene, kinds: &[AnchorKind]) -> Vec<Anchor> {
     skelight::guided::analysis::anchors(scene, &kinds)
 }
 
+/// `skeleton.json`: the graph's nodes (position, radius) and edges.
 fn graph_json(g: &SkeletonGraph) -> String {
-    let mut s = String::from("{\"nodes\": [");
-    for (i, n) in g.nodes.iter().enumerate() {
-        let sep = if i == 0 { "" } else { "," };
-        let [x, y, z] = n.position;
-        let _ = write!(s, "{sep}\n  {{\"position\": [{x}, {y}, {z}], \"radius\": {}}}", n.radius);
+    #[derive(serde::Serialize)]
+    struct Node {
+        position: [f64; 3],
+        radius: f64,
     }
-    s += "\n], \"edges\": [";
-    for (i, [a, b]) in g.edges.iter().enumerate() {
-        let sep = if i == 0 { "" } else { ", " };
-        let _ = write!(s, "{sep}[{a}, {b}]");
+    #[derive(serde::Serialize)]
+    struct Graph<'a> {
+        nodes: Vec<Node>,
+        edges: &'a [[u32; 2]],
     }
-    s += "]}\n";
-    s
+    let nodes = g.nodes.iter().map(|n| Node { position: n.position, radius: n.radius }).collect();
+    to_json(&Graph { nodes, edges: &g.edges })
+}
+
+/// Pretty JSON with a final newline (the values are plain numbers and strings: it cannot
+/// fail).
+fn to_json(value: &impl serde::Serialize) -> String {
+    serde_json::to_string_pretty(value).expect("plain values serialize") + "\n"
 }
 
 /// ASCII PLY with vertices and edges (a line set most viewers show).
@@ -164,12 +170,25 @@ fn write_grid(path: &Path, values: &[u32]) -> Result<()> {
 
 /// Where the raw grids sit in the world and what their values mean.
 fn grids_json(a: &Analysis) -> String {
-    let [w, h, d] = a.spec.dims;
-    let [ox, oy, oz] = a.spec.origin;
-    format!(
-        "{{\"dims\": [{w}, {h}, {d}], \"origin\": [{ox}, {oy}, {oz}], \"voxel\": {},\n \"layout\": \"little-endian u32, x fastest, then y, then z; voxel (x, y, z) spans origin + voxel * [x, x+1] (and so on)\",\n \"mapping_filtered.u32\": \"index + 1 of the node of skeleton_filtered.json each empty voxel maps to (Alg. 5); 0 for scene voxels and for empty pockets no node reaches\",\n \"labels.u32\": \"opening-forest region of each empty voxel, 1..{}; 0 for scene voxels\"}}\n",
-        a.spec.voxel, a.labelling.count
-    )
+    #[derive(serde::Serialize)]
+    struct Grids {
+        dims: [usize; 3],
+        origin: [f64; 3],
+        voxel: f64,
+        layout: &'static str,
+        #[serde(rename = "mapping_filtered.u32")]
+        mapping_filtered: &'static str,
+        #[serde(rename = "labels.u32")]
+        labels: String,
+    }
+    to_json(&Grids {
+        dims: a.spec.dims,
+        origin: a.spec.origin,
+        voxel: a.spec.voxel,
+        layout: "little-endian u32, x fastest, then y, then z; voxel (x, y, z) spans origin + voxel * [x, x+1] (and so on)",
+        mapping_filtered: "index + 1 of the node of skeleton_filtered.json each empty voxel maps to (Alg. 5); 0 for scene voxels and for empty pockets no node reaches",
+        labels: format!("opening-forest region of each empty voxel, 1..{}; 0 for scene voxels", a.labelling.count),
+    })
 }
 
 /// Every portal as an OBJ object of quads, one per 2-face between its regions.
@@ -206,18 +225,30 @@ fn portals_obj(a: &Analysis) -> String {
     s
 }
 
+/// `portals.json`: each portal's regions, face count, area, centroid and normal.
 fn portals_json(a: &Analysis) -> String {
-    let mut s = String::from("{\"portals\": [");
-    for (i, p) in a.portals.iter().enumerate() {
-        let sep = if i == 0 { "" } else { "," };
-        let [cx, cy, cz] = p.centroid;
-        let [nx, ny, nz] = p.normal;
-        let _ = write!(
-            s,
-            "{sep}\n  {{\"regions\": [{}, {}], \"faces\": {}, \"area\": {}, \"centroid\": [{cx}, {cy}, {cz}], \"normal\": [{nx}, {ny}, {nz}]}}",
-            p.from, p.to, p.faces, p.area
-        );
+    #[derive(serde::Serialize)]
+    struct Portal {
+        regions: [u32; 2],
+        faces: usize,
+        area: f64,
+        centroid: [f64; 3],
+        normal: [f64; 3],
     }
-    s += "\n]}\n";
-    s
+    #[derive(serde::Serialize)]
+    struct Portals {
+        portals: Vec<Portal>,
+    }
+    let portals = a
+        .portals
+        .iter()
+        .map(|p| Portal {
+            regions: [p.from, p.to],
+            faces: p.faces,
+            area: p.area,
+            centroid: p.centroid,
+            normal: p.normal,
+        })
+        .collect();
+    to_json(&Portals { portals })
 }

@@ -55,8 +55,8 @@ fn bad_arguments_fail_with_a_message() {
     }
 }
 
-/// `--debug-strategies` writes one image per (s, t) strategy of bpt; rendered with the same
-/// random numbers, they add up, pixel by pixel, to the full render.
+/// `--debug` writes one image per (s, t) strategy of bpt; rendered with the same random
+/// numbers, they add up, pixel by pixel, to the full render.
 #[test]
 fn bpt_strategy_images_add_up_to_the_render() {
     let d = tmp("strategies");
@@ -72,7 +72,7 @@ fn bpt_strategy_images_add_up_to_the_render() {
         "16",
         "--max-depth",
         "3",
-        "--debug-strategies",
+        "--debug",
         dir.to_str().unwrap(),
         "-o",
         full.to_str().unwrap(),
@@ -100,8 +100,18 @@ fn bpt_strategy_images_add_up_to_the_render() {
             assert!((a - v as f64).abs() <= 1e-4 * (v as f64).abs().max(1e-2), "strategies sum to {a}, render {v}");
         }
     }
-    let out = bin().args(["render", "-i", "pt", "--debug-strategies", dir.to_str().unwrap()]).output().unwrap();
-    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("apply to --integrator bpt"));
+    let dbg = d.join("pt");
+    let out = bin()
+        .args(["render", "-i", "pt", "--spp", "1", "--resolution", "8", "8", "--debug"])
+        .arg(&dbg)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && err.contains("pt offers no --debug output"), "{err}");
+    let out =
+        bin().args(["render", "-i", "bpt", "--max-depth", "-1", "--spp", "1", "--debug"]).arg(&dbg).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("max depth from 1 to 16") && !err.contains("panicked"), "{err}");
 }
 
 /// `skelight skeleton` on the default scene writes the skeletons, portals, a report and the
@@ -116,16 +126,8 @@ fn skeleton_writes_graphs_portals_a_report_and_pictures() {
     }
     // Raw grids, described by grids.json; portals as OBJ quads.
     let grids = std::fs::read_to_string(d.join("grids.json")).unwrap();
-    let dims: Vec<usize> = grids
-        .split('[')
-        .nth(1)
-        .unwrap()
-        .split(']')
-        .next()
-        .unwrap()
-        .split(',')
-        .map(|v| v.trim().parse().unwrap())
-        .collect();
+    let grids: serde_json::Value = serde_json::from_str(&grids).expect("grids.json parses");
+    let dims: Vec<usize> = serde_json::from_value(grids["dims"].clone()).expect("dims");
     for f in ["mapping_filtered.u32", "labels.u32"] {
         let len = std::fs::metadata(d.join(f)).unwrap().len() as usize;
         assert_eq!(len, 4 * dims.iter().product::<usize>(), "{f}");
@@ -535,11 +537,17 @@ fn merge_and_diff_refuse_impossible_and_non_finite_inputs() {
 
 /// The registry reaches the command line: `render --help` lists skelpt's parameters,
 /// `--param` sets them, bad ones fail with a message naming the parameter, the preparation is
-/// reported, and `--debug-skeleton` writes the guidance pictures.
+/// reported, and `--debug` writes the guidance pictures.
 #[test]
 fn estimator_parameters_from_the_command_line() {
     let help = run_ok(&["render", "--help"]);
     assert!(help.contains("skelpt") && help.contains("c_skel") && help.contains("adaptive"), "{help}");
+    // `--integrator`'s own line lists every estimator of the registry.
+    let line = run_ok(&["render", "-h"]);
+    let line = line.lines().skip_while(|l| !l.contains("--integrator")).take(3).collect::<Vec<_>>().join(" ");
+    for name in skelight::estimators::names() {
+        assert!(line.contains(name), "--integrator's help misses {name}: {line}");
+    }
     for (param, expected) in
         [("strength=-2", "strength"), ("nonsense=1", "no parameter 'nonsense'"), ("novalue", "name=value")]
     {
@@ -560,7 +568,7 @@ fn estimator_parameters_from_the_command_line() {
         "--resolution",
         "32",
         "24",
-        "--debug-skeleton",
+        "--debug",
         dbg.to_str().unwrap(),
         "-o",
         img.to_str().unwrap(),
@@ -571,13 +579,13 @@ fn estimator_parameters_from_the_command_line() {
     }
 }
 
-/// Renders with `--debug-distributions` into a fresh folder: the output and the folder.
+/// Renders with `--debug` into a fresh folder: the output and the folder.
 fn render_distributions(estimator: &str) -> (String, PathBuf, PathBuf) {
     let d = tmp(estimator);
     let (dbg, img) = (d.join("dbg"), d.join("img.exr"));
     let (dbg_s, img_s) = (dbg.to_str().unwrap(), img.to_str().unwrap());
     let args = ["render", "-i", estimator, "-P", "candidates=64", "--spp", "2", "--resolution", "32", "24"];
-    let text = run_ok(&[&args[..], &["--debug-distributions", dbg_s, "-o", img_s]].concat());
+    let text = run_ok(&[&args[..], &["--debug", dbg_s, "-o", img_s]].concat());
     for f in ["V.exr", "U.png", "C.exr", "fallback.exr", "unresampled.exr", "distributions.csv"] {
         assert!(dbg.join(f).exists(), "{f} missing");
     }
@@ -586,26 +594,24 @@ fn render_distributions(estimator: &str) -> (String, PathBuf, PathBuf) {
     (text, dbg, img)
 }
 
-/// `--debug-distributions` writes skelbpt's per-distribution images, their means and the
-/// nodes picture; the per-iteration cost of its tables is reported; it refuses other
-/// estimators and time budgets.
+/// `--debug` writes skelbpt's per-distribution images, their means and the nodes picture;
+/// the per-iteration cost of its tables is reported; it refuses time budgets (the parts
+/// must see the same samples).
 #[test]
 fn skelbpt_distribution_pictures() {
     let (text, dbg, img) = render_distributions("skelbpt");
     let (dbg_s, img_s) = (dbg.to_str().unwrap(), img.to_str().unwrap());
     assert!(text.contains("resampling tables:") && text.contains("per iteration"), "{text}");
     assert!(dbg.join("nodes_view.png").exists(), "nodes_view.png missing");
-    for args in [
-        &["render", "-i", "bpt", "--spp", "1", "--debug-distributions", dbg_s, "-o", img_s][..],
-        &["render", "-i", "skelbpt", "--time", "1", "--debug-distributions", dbg_s, "-o", img_s][..],
-    ] {
-        let out = bin().args(args).output().unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && err.contains("--debug-distributions") && !err.contains("panicked"), "{err}");
-    }
+    let out = bin().args(["render", "-i", "skelbpt", "--time", "1", "--debug", dbg_s, "-o", img_s]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--debug") && err.contains("--spp") && !err.contains("panicked"),
+        "{err}"
+    );
 }
 
-/// icbpt takes `--debug-distributions` too (no nodes picture: it has no skeleton), and
+/// icbpt takes `--debug` too (no nodes picture: it has no skeleton), and
 /// reports its records' tables.
 #[test]
 fn icbpt_distribution_pictures() {

@@ -6,8 +6,9 @@
 use std::time::{Duration, Instant};
 
 use skelight::compare::External;
+use skelight::estimators::registry;
 use skelight::film::Film;
-use skelight::integrator::{registry, Preparation, Progress, RenderOptions, RenderResult};
+use skelight::integrator::{Preparation, Progress, RenderOptions, RenderResult};
 use skelight::job::{Device, Job, JobError, JobSpec, Rendered};
 use skelight::scene::Scene;
 use skelight::shard::Manifest;

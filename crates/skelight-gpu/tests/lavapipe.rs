@@ -150,7 +150,7 @@ fn compare_runs_gpu_estimators_beside_the_cpus() {
     use skelight::integrator::RenderOptions;
     use skelight_gpu::job::CompareOnGpu;
     let scene = common::load_small(&shared_dir().join("conformance/scenes/c01_cbox_area.xml"), 24, 24);
-    let (mut bpt, _) = skelight::integrator::registry::create_for_scene("bpt", &scene.settings, &[]).unwrap();
+    let (mut bpt, _) = skelight::estimators::registry::create_for_scene("bpt", &scene.settings, &[]).unwrap();
     let reference = render_spp(&scene, bpt.as_mut(), 64, 1).image();
     let budget = std::time::Duration::from_millis(800);
     let opts = RenderOptions { spp: None, time: Some(budget), seed: 4, threads: 0 };
@@ -496,7 +496,7 @@ fn gpu_and_cpu_agree_with(
         assert_eq!(gpu.splat_mode, Splats::CompareAndSwap);
     }
     let g: Vec<Image> = (0..batches).map(|i| render(&mut gpu, scene, gpu_spp, 21 + i).image()).collect();
-    let mut cpu = skelight::integrator::registry::create(name, &[]).unwrap();
+    let mut cpu = skelight::estimators::registry::create(name, &[]).unwrap();
     let c: Vec<Image> =
         (0..batches).map(|i| render_spp(scene, cpu.as_mut(), cpu_spp, 21 + batches + i).image()).collect();
     let (g, c): (Vec<&Image>, Vec<&Image>) = (g.iter().collect(), c.iter().collect());

@@ -196,9 +196,11 @@ fn gpu_estimator(
 /// The render's key names the scene by its content, not its path, so shards rendered from
 /// copies of one file at different paths merge. `device = "gpu"` renders pt, ibpt or lt on the
 /// first Vulkan adapter (skelight_gpu; `threads` unused): the same samples, shards and time
-/// budget, its key naming the device (GPU shards merge with GPU shards only).
+/// budget, its key naming the device (GPU shards merge with GPU shards only). `debug`, a
+/// folder, writes what the estimator shows of itself there, as `skelight render --debug`
+/// does (its parts, rendered with the same samples, and pictures of its internals).
 #[pyfunction]
-#[pyo3(signature = (scene, integrator = "pt", spp = None, time = None, seed = 0, params = None, shard = None, threads = 0, progress = None, device = "cpu"))]
+#[pyo3(signature = (scene, integrator = "pt", spp = None, time = None, seed = 0, params = None, shard = None, threads = 0, progress = None, device = "cpu", debug = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn render(
     py: Python<'_>,
@@ -212,9 +214,13 @@ pub fn render(
     threads: usize,
     progress: Option<PyObject>,
     device: &str,
+    debug: Option<std::path::PathBuf>,
 ) -> PyResult<Render> {
     let pairs = param_pairs(params)?;
     let on_gpu = gpu_estimator(device, integrator, &pairs)?;
+    if debug.is_some() && (on_gpu.is_some() || shard.is_some()) {
+        return Err(error("debug = …: its pictures belong to a whole CPU render (no device = 'gpu', no shard)"));
+    }
     let time = match time {
         Some(t) if !(t > 0.0 && t.is_finite() && t < 1e9) => {
             return Err(error(format!("time = {t}: give a positive number of seconds")))
@@ -230,7 +236,19 @@ pub fn render(
     let mut raised: Option<PyErr> = None;
     let result = py.allow_threads(|| {
         let scene = scene_lock.read().unwrap_or_else(|e| e.into_inner());
-        let mut job = Job::new(&scene, label, &spec)?;
+        let mut job = Job::new(&scene, label.clone(), &spec)?;
+        if let Some(dir) = &debug {
+            let parts = job.integrator.debug_parts(&scene).map_err(|e| JobError::Invalid(format!("debug: {e}")))?;
+            if let Some(parts) = parts {
+                skelight::debug::check_parts(&job)?;
+                let run = |estimator| {
+                    let mut part = Job::new(&scene, label.clone(), &spec)?;
+                    part.integrator = estimator;
+                    part.run(&scene, None, |_, _| Ok(()))
+                };
+                skelight::debug::render_parts(dir, parts, 0.0, run)?;
+            }
+        }
         let on_pass = |p: &skelight::integrator::Progress, _: &Film| {
             Python::with_gil(|py| {
                 let outcome = py.check_signals().and_then(|()| match &progress {
@@ -259,6 +277,9 @@ pub fn render(
             }
             None => job.run(&scene, None, on_pass)?,
         };
+        if let Some(dir) = &debug {
+            skelight::debug::write_files(job.integrator.as_ref(), &scene, dir)?;
+        }
         Ok::<_, JobError>((rendered, job.key(&scene)))
     });
     if let Some(e) = raised {
@@ -315,8 +336,8 @@ pub fn load_image(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Bound<'_
 #[pyfunction]
 pub fn integrators(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let out = PyDict::new(py);
-    for name in skelight::integrator::registry::names() {
-        let e = skelight::integrator::registry::find(name).map_err(error)?;
+    for name in skelight::estimators::registry::names() {
+        let e = skelight::estimators::registry::find(name).map_err(error)?;
         let d = PyDict::new(py);
         d.set_item("doc", e.doc)?;
         let params = PyDict::new(py);

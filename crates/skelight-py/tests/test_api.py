@@ -241,3 +241,17 @@ def test_integrators_listed_with_parameters():
     listed = skelight.integrators()
     assert {"pt", "bpt", "skelpt", "skelbpt", "icbpt"} <= set(listed)
     assert "strength" in listed["skelpt"]["params"]
+
+
+def test_debug_writes_what_the_estimator_shows(c01, tmp_path):
+    """`debug=` is `render --debug`'s twin: bpt's strategy images add up to the render."""
+    scene = small(c01, 16, 12)
+    scene.max_depth = 3
+    out = tmp_path / "dbg"
+    full = skelight.render(scene, "bpt", spp=2, seed=3, debug=str(out))
+    csv = (out / "strategies.csv").read_text().splitlines()
+    assert csv[0].startswith("s,t,segments") and len(csv) > 3
+    parts = sum(skelight.load_image(p) for p in out.glob("s*_t*.exr"))
+    assert np.allclose(parts, np.asarray(full), rtol=1e-4, atol=1e-4)
+    with pytest.raises(skelight.SkelightError, match="spp"):
+        skelight.render(scene, "bpt", time=0.5, debug=str(out))

@@ -7,17 +7,19 @@
 //! cargo run --release --example join_visibility -- scenes/door-corner.toml 128 64
 //! ```
 
-use skelight::guided::candidates::Combination;
-use skelight::guided::importance_cache::{CacheInput, ImportanceCache, Nearby};
-use skelight::guided::resampling::{BuildInput, Resampling};
-use skelight::integrator::mis::Heuristic;
+use skelight::estimators::resampling::candidates::Combination;
+use skelight::estimators::resampling::importance_cache::{CacheInput, ImportanceCache, Nearby};
+use skelight::estimators::resampling::node_tables::NodeSelection;
+use skelight::estimators::resampling::node_tables::{BuildInput, Resampling};
+use skelight::guided::GuideSettings;
 use skelight::integrator::params::Params;
-use skelight::integrator::skelbpt::{self, SkeletonBpt};
-use skelight::integrator::strategies::{edge, visible};
-use skelight::integrator::subpath::{camera_subpath, LightPaths};
-use skelight::integrator::vertex::{Vertex, VertexKind};
-use skelight::integrator::Integrator;
+use skelight::integrator::Preparation;
 use skelight::math::vec2;
+use skelight::paths::mis::Heuristic;
+use skelight::paths::strategies::edge;
+use skelight::paths::subpath::{camera_subpath, LightPaths};
+use skelight::paths::vertex::{Vertex, VertexKind};
+use skelight::paths::visibility::visible;
 use skelight::sampling::Rng;
 
 /// Joins counted (unoccluded contribution not zero) and those visible.
@@ -54,13 +56,15 @@ fn main() {
     });
     scene.set_resolution(w, h);
     let max_depth = scene.settings.max_depth;
-    let deepest = skelight::integrator::resampled::deepest_join(max_depth);
-    let mut skel = SkeletonBpt::from_params(&Params::new("skelbpt", skelbpt::PARAMS, &[]).unwrap());
-    skel.prepare(&scene).expect("skelbpt prepares");
+    let deepest = skelight::estimators::resampling::join::deepest_join(max_depth);
+    let p = Params::new("skelbpt", skelight::estimators::find("skelbpt").unwrap().params, &[]).unwrap();
+    let settings = GuideSettings { resolution: p.int("resolution") as usize };
+    let skel = NodeSelection::prepare(&scene, &settings, p.float("acceptance"), max_depth, &mut Preparation::default())
+        .expect("skelbpt prepares");
     let mut paths = LightPaths::default();
     paths.trace(&scene, w * h, 1, 0, max_depth);
     let mut table = Resampling::default();
-    let (guide, accepted, _) = skel.nodes().expect("a skeleton");
+    let (guide, accepted) = (&*skel.guide, &skel.accepted[..]);
     let input = BuildInput {
         guide,
         accepted,
@@ -108,7 +112,7 @@ fn main() {
                     own.add(&scene, light, s, &camera, t);
                 }
                 if let Some(d) = table.draw(node, s, rng.next_u32()) {
-                    let rate = if d.origin == skelight::guided::resampling::Origin::Fallback {
+                    let rate = if d.origin == skelight::estimators::resampling::node_tables::Origin::Fallback {
                         &mut uniform
                     } else {
                         &mut skel_rate

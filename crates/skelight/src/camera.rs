@@ -163,6 +163,17 @@ impl Camera {
 
     /// Primary ray through film position `raster` (pixels), lens sample `u_lens`, starting
     /// on the near plane (see [`Camera::sample_ray`]).
+    /// One ray through each pixel's centre (lens centre), row by row: pictures and ray
+    /// benchmarks of what the camera sees.
+    pub fn pixel_centre_rays(&self) -> Vec<Ray> {
+        use rayon::prelude::*;
+        let w = self.width;
+        (0..w * self.height)
+            .into_par_iter()
+            .map(|i| self.generate_ray(vec2((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), vec2(0.5, 0.5)))
+            .collect()
+    }
+
     pub fn generate_ray(&self, raster: Vec2, u_lens: Vec2) -> Ray {
         self.sample_ray(raster, u_lens).1
     }

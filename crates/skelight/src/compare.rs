@@ -107,8 +107,8 @@ pub fn run_with(
     for name in names {
         let estimator = match external.check(name, scene) {
             Some(checked) => checked.map(|()| None),
-            None => integrator::registry::parse_spec(name)
-                .and_then(|(estimator, params)| integrator::registry::create(&estimator, &params))
+            None => crate::estimators::registry::parse_spec(name)
+                .and_then(|(estimator, params)| crate::estimators::registry::create(&estimator, &params))
                 .map(Some)
                 .map_err(JobError::from),
         };

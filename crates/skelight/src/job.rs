@@ -171,7 +171,7 @@ pub fn save_film(film: &Film, spp: u32, output: &Path, exposure: f32) -> Result<
 impl Job {
     pub fn new(scene: &Scene, label: impl Into<String>, spec: &JobSpec) -> Result<Job, JobError> {
         let (integrator, mut warnings) =
-            integrator::registry::create_for_scene(&spec.integrator, &scene.settings, &spec.params)?;
+            crate::estimators::registry::create_for_scene(&spec.integrator, &scene.settings, &spec.params)?;
         match (spec.spp, spec.time) {
             (Some(0), _) => return Err(JobError::Invalid("the sample count must be at least 1".into())),
             (None, None) => return Err(JobError::Invalid("give a sample count or a time budget".into())),

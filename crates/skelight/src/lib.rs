@@ -1,8 +1,10 @@
 //! skelight: a physically based renderer that analyses the empty space of a scene to
 //! sample light paths where ordinary estimators struggle.
 //!
-//! Data flow: scene files → [`scene`] (+ [`geometry`] BVH) → estimators in [`integrator`]
-//! → [`film`] → [`eval`]. [`job`] is a render as the CLI, the Python package and Dask's
+//! Data flow: scene files → [`scene`] (+ [`geometry`] BVH) → the empty-space analysis in
+//! [`guided`] → the light-transport kit in [`paths`] → the estimators in [`estimators`]
+//! (behind their registry; the contract and the render loop are [`integrator`]'s) →
+//! [`film`] → [`eval`]. `docs/architecture.md` says which layer may use which. [`job`] is a render as the CLI, the Python package and Dask's
 //! workers run it; [`shard`] splits a render's samples and merges them back; [`compare`]
 //! runs equal-time studies.
 
@@ -14,6 +16,8 @@ pub mod camera;
 pub mod checkpoint;
 pub mod color;
 pub mod compare;
+pub mod debug;
+pub mod estimators;
 pub mod eval;
 pub mod film;
 pub mod geometry;
@@ -24,6 +28,7 @@ pub mod job;
 pub mod light;
 pub mod material;
 pub mod math;
+pub mod paths;
 pub mod sampling;
 pub mod scene;
 pub mod shard;

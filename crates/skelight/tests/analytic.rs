@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use skelight::integrator::by_name;
+use skelight::estimators::by_name;
 use skelight::scene::load::load;
 
 fn scene_file(name: &str, xml: &str) -> std::path::PathBuf {

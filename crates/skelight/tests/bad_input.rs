@@ -5,7 +5,8 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use skelight::integrator::{by_name, render, RenderOptions};
+use skelight::estimators::by_name;
+use skelight::integrator::{render, RenderOptions};
 use skelight::scene::load::load;
 
 struct Dir(PathBuf);

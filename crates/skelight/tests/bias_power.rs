@@ -18,8 +18,8 @@
 mod common;
 
 use common::*;
-use skelight::integrator::mutation::{self, Strategy};
-use skelight::integrator::registry;
+use skelight::estimators::registry;
+use skelight::paths::mutation::{self, Strategy};
 
 const ESTIMATORS: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt", "skelpt:adaptive=false", "skelbpt", "icbpt"];
 const SCENES: &[&str] = &["c01", "c02", "c06", "c07", "c09", "c14"];

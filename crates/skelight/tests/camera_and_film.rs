@@ -7,7 +7,7 @@
 mod common;
 
 use common::*;
-use skelight::integrator::by_name;
+use skelight::estimators::by_name;
 use skelight::scene::Scene;
 
 /// The Cornell box seen through a near plane: at 2.5 (the camera is 3.9 from the box's

@@ -63,8 +63,8 @@ pub fn run_conformance(integrator_name: &str, min_tested: usize) {
     let dir = shared_dir().join("conformance");
     let entries = manifest(&dir);
     assert!(entries.len() >= 18, "expected the conformance manifest to list scenes");
-    let (name, params) = skelight::integrator::registry::parse_spec(integrator_name).expect("estimator");
-    let mut integrator = skelight::integrator::registry::create(&name, &params).expect("estimator");
+    let (name, params) = skelight::estimators::registry::parse_spec(integrator_name).expect("estimator");
+    let mut integrator = skelight::estimators::registry::create(&name, &params).expect("estimator");
     let mut failures = Vec::new();
     let mut tested = 0;
     // SKELIGHT_CONFORMANCE=c08,c11 restricts a run to scenes whose names start so.
@@ -213,7 +213,7 @@ const CHECKED: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt", "skelbpt", "icbp
 
 #[test]
 fn every_registered_estimator_has_a_conformance_test() {
-    for name in skelight::integrator::registry::names() {
+    for name in skelight::estimators::registry::names() {
         assert!(CHECKED.contains(&name), "{name} is registered but has no conformance test here");
     }
 }

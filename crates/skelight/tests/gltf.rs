@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use skelight::integrator::by_name;
+use skelight::estimators::by_name;
 use skelight::scene::load::load;
 
 /// A 20×20 floor quad at y = 0 (base colour 0.5, fully rough), a point light of intensity

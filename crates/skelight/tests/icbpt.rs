@@ -7,16 +7,18 @@
 mod common;
 
 use common::*;
-use skelight::guided::candidates::{uniform_position_probability, uniform_position_start, Combination, Draw};
-use skelight::guided::importance_cache::{CacheInput, ImportanceCache, Nearby};
-use skelight::guided::resampling::Origin;
-use skelight::integrator::mis::{running_sums, AllStrategies, Heuristic};
-use skelight::integrator::registry;
-use skelight::integrator::resampled::{resampled_join, Join};
-use skelight::integrator::strategies::connect_vertices;
-use skelight::integrator::subpath::{camera_subpath, LightPaths};
+use skelight::estimators::registry;
+use skelight::estimators::resampling::candidates::{
+    uniform_position_probability, uniform_position_start, Combination, Draw,
+};
+use skelight::estimators::resampling::importance_cache::{CacheInput, ImportanceCache, Nearby};
+use skelight::estimators::resampling::join::{resampled_join, Join};
+use skelight::estimators::resampling::node_tables::Origin;
 use skelight::integrator::{render, RenderOptions};
 use skelight::math::vec2;
+use skelight::paths::mis::{running_sums, AllStrategies, Heuristic};
+use skelight::paths::strategies::connect_vertices;
+use skelight::paths::subpath::{camera_subpath, LightPaths};
 use skelight::sampling::Rng;
 use skelight::scene::Scene;
 

@@ -17,16 +17,16 @@ mod common;
 
 use common::{edited_conformance_scene, shared_dir};
 use skelight::geometry::offset_origin;
-use skelight::integrator::ibpt::{ibpt_strategies, ChainWeight, MisChain, Side};
-use skelight::integrator::lt::camera_end_strategies;
-use skelight::integrator::mis::{
-    all_strategies, running_sums, weight, AllStrategies, Heuristic, Junction, PathWeight, StrategySet, SubPath,
-};
-use skelight::integrator::subpath::{camera_subpath, light_subpath};
-use skelight::integrator::vertex::{LensHit, Vertex, VertexKind};
 use skelight::material::TransportMode;
 use skelight::material::{BsdfCtx, BsdfModel};
 use skelight::math::{vec2, Frame, Vec3};
+use skelight::paths::mis::{
+    all_strategies, running_sums, weight, AllStrategies, Heuristic, Junction, PathWeight, StrategySet, SubPath,
+};
+use skelight::paths::mis_chain::{ibpt_strategies, ChainWeight, MisChain, Side};
+use skelight::paths::strategies::camera_end_strategies;
+use skelight::paths::subpath::{camera_subpath, light_subpath};
+use skelight::paths::vertex::{LensHit, Vertex, VertexKind};
 use skelight::sampling::Rng;
 use skelight::scene::load::load;
 use skelight::scene::Scene;

@@ -5,9 +5,9 @@ mod common;
 use std::path::Path;
 
 use common::*;
+use skelight::estimators::by_name;
 use skelight::eval::block_means;
 use skelight::imageio::Image;
-use skelight::integrator::by_name;
 use skelight::math::Vec3;
 use skelight::scene::load::load;
 use skelight::scene::Scene;
@@ -314,7 +314,7 @@ fn raw_textures_are_read_as_linear_values() {
 #[test]
 fn every_estimator_renders_the_same_image_whatever_the_thread_count() {
     let scene = load_small(&repo_scene("door-corner.toml"), 64, 32);
-    for name in skelight::integrator::registry::names() {
+    for name in skelight::estimators::registry::names() {
         let spp = match name {
             "skelpt" => 136,
             "skelbpt" => 40,

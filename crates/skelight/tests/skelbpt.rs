@@ -7,15 +7,17 @@
 mod common;
 
 use common::*;
-use skelight::guided::resampling::{BuildInput, Combination, Origin, Resampling};
-use skelight::integrator::mis::{running_sums, weight, AllStrategies, Heuristic, PathWeight, SubPath};
+use skelight::estimators::registry;
+use skelight::estimators::resampling::join::{resampled_join, Join};
+use skelight::estimators::resampling::node_tables::NodeSelection;
+use skelight::estimators::resampling::node_tables::{BuildInput, Combination, Origin, Resampling};
+use skelight::guided::GuideSettings;
 use skelight::integrator::params::Params;
-use skelight::integrator::registry;
-use skelight::integrator::skelbpt::{self, SkeletonBpt};
-use skelight::integrator::strategies::connect_vertices;
-use skelight::integrator::subpath::{camera_subpath, LightPaths};
-use skelight::integrator::Integrator;
+use skelight::integrator::Preparation;
 use skelight::math::vec2;
+use skelight::paths::mis::{running_sums, weight, AllStrategies, Heuristic, PathWeight, SubPath};
+use skelight::paths::strategies::connect_vertices;
+use skelight::paths::subpath::{camera_subpath, LightPaths};
 use skelight::sampling::Rng;
 
 fn door_corner(w: usize, h: usize) -> skelight::scene::Scene {
@@ -24,7 +26,7 @@ fn door_corner(w: usize, h: usize) -> skelight::scene::Scene {
 
 /// A prepared skelbpt and one iteration's tables on the door corner at 64×32 (2048 light
 /// sub-paths, 256 candidates).
-fn door_corner_tables(combination: Combination) -> (skelight::scene::Scene, SkeletonBpt, LightPaths, Resampling) {
+fn door_corner_tables(combination: Combination) -> (skelight::scene::Scene, NodeSelection, LightPaths, Resampling) {
     tables(door_corner(64, 32), combination)
 }
 
@@ -32,16 +34,17 @@ fn door_corner_tables(combination: Combination) -> (skelight::scene::Scene, Skel
 fn tables(
     scene: skelight::scene::Scene,
     combination: Combination,
-) -> (skelight::scene::Scene, SkeletonBpt, LightPaths, Resampling) {
+) -> (skelight::scene::Scene, NodeSelection, LightPaths, Resampling) {
     assert_eq!(scene.settings.width * scene.settings.height, 64 * 32);
-    let mut skelbpt = SkeletonBpt::from_params(&Params::new("skelbpt", skelbpt::PARAMS, &[]).unwrap());
-    let prep = skelbpt.prepare(&scene).expect("prepares");
+    let skelbpt = node_selection(&scene);
+    let prep = &skelbpt.1;
+    let skelbpt = skelbpt.0;
     println!("{}", prep.notes.join("\n"));
     let mut paths = LightPaths::default();
     paths.trace(&scene, 64 * 32, 5, 0, scene.settings.max_depth);
     let mut table = Resampling::default();
     {
-        let (guide, accepted, _) = skelbpt.nodes().expect("the door corner has a skeleton");
+        let (guide, accepted, _) = (&*skelbpt.guide, &skelbpt.accepted[..], &skelbpt.mapped[..]);
         assert!(!accepted.is_empty(), "the pilot accepted no node");
         let input = BuildInput {
             guide,
@@ -63,7 +66,7 @@ fn tables(
 /// probabilities sum to one; no candidate gets less than a third of the uniform share.
 fn check_draws(combination: Combination) {
     let (_, skelbpt, _, table) = door_corner_tables(combination);
-    let (_, accepted, _) = skelbpt.nodes().unwrap();
+    let (_, accepted, _) = (&*skelbpt.guide, &skelbpt.accepted[..], &skelbpt.mapped[..]);
     assert_eq!(table.candidates(), 256);
     let grid: u64 = 1 << 17;
     let mut checked = 0;
@@ -201,10 +204,10 @@ fn resampled_joins_average_the_joins_of_all_candidates() {
 }
 
 fn check_average(
-    (scene, skelbpt, paths, table): (skelight::scene::Scene, SkeletonBpt, LightPaths, Resampling),
+    (scene, skelbpt, paths, table): (skelight::scene::Scene, NodeSelection, LightPaths, Resampling),
     paths_end_early: bool,
 ) {
-    let (guide, _, _) = skelbpt.nodes().unwrap();
+    let (guide, _, _) = (&*skelbpt.guide, &skelbpt.accepted[..], &skelbpt.mapped[..]);
     let n = table.candidates();
     if paths_end_early {
         assert!(
@@ -223,15 +226,14 @@ fn check_average(
             let z = &camera[t - 1];
             let node = guide.node_at(z.p(), z.n(), z.si.wi);
             for s in 2..=(7 - t).min(table.depths() + 1) {
-                let join =
-                    skelbpt::Join { s, camera: &camera, camera_sums: &camera_sums, t, heuristic: Heuristic::Balance };
+                let join = Join { s, camera: &camera, camera_sums: &camera_sums, t, heuristic: Heuristic::Balance };
                 // Each candidate once, with its probability (stratified draws find them all).
                 let mut seen = std::collections::HashSet::new();
                 let mut expectation = 0.0f64;
                 for k in 0..grid {
                     let Some(d) = table.draw(node, s, (k * ((1u64 << 32) / grid) + 7) as u32) else { break };
                     if seen.insert(d.candidate) {
-                        let c = skelbpt::resampled_join(&scene, &table, &d, &join);
+                        let c = resampled_join(&scene, &table, &d, &join);
                         expectation += d.probability as f64 * c.luminance() as f64;
                     }
                 }
@@ -265,4 +267,15 @@ fn check_average(
         (2..=table.depths() + 1).map(|s| table.eligible(s).len()).collect::<Vec<_>>()
     );
     assert!(checked >= 20, "too few joins with light checked: {checked}");
+}
+
+/// skelbpt's preparation with its default parameters: the skeleton and the nodes accepted
+/// for the first pass.
+fn node_selection(scene: &skelight::scene::Scene) -> (NodeSelection, Preparation) {
+    let p = Params::new("skelbpt", registry::find("skelbpt").unwrap().params, &[]).unwrap();
+    let settings = GuideSettings { resolution: p.int("resolution") as usize };
+    let mut prep = Preparation::default();
+    let nodes = NodeSelection::prepare(scene, &settings, p.float("acceptance"), scene.settings.max_depth, &mut prep)
+        .expect("the door corner has a skeleton");
+    (nodes, prep)
 }

@@ -9,10 +9,11 @@ mod common;
 
 use std::f32::consts::PI;
 
+use skelight::estimators::registry;
 use skelight::guided::directions::{lobe_pdf, mixture_pdf, sample_lobe, sample_mixture};
+use skelight::guided::{Guidance, GuidanceSettings};
 use skelight::integrator::params::Params;
-use skelight::integrator::skelpt::{self, SkeletonPathTracer};
-use skelight::integrator::Integrator;
+use skelight::integrator::Preparation;
 use skelight::math::{vec2, vec3, Vec3};
 use skelight::sampling::Rng;
 
@@ -92,14 +93,14 @@ fn cosine_power_lobe_samples_its_density() {
 }
 
 /// The default scene at `size`² pixels and skelpt (default parameters) prepared for it.
-fn prepared_two_rooms(size: usize) -> (skelight::scene::Scene, SkeletonPathTracer) {
+fn prepared_two_rooms(size: usize) -> (skelight::scene::Scene, Guidance) {
     let mut scene = skelight::scene::builtin::two_rooms();
     scene.set_resolution(size, size);
-    let params = Params::new("skelpt", skelpt::PARAMS, &[]).unwrap();
-    let mut skelpt = SkeletonPathTracer::from_params(&params);
-    let prep = skelpt.prepare(&scene).expect("prepare");
+    let params = Params::new("skelpt", registry::find("skelpt").unwrap().params, &[]).unwrap();
+    let mut prep = Preparation::default();
+    let guidance = Guidance::prepare(&scene, &GuidanceSettings::from_params(&params), &mut prep).expect("prepare");
     println!("{}", prep.notes.join("\n"));
-    (scene, skelpt)
+    (scene, guidance.expect("the corridor's skeleton guides skelpt"))
 }
 
 /// Eq. 176 written out: per node, the mean power of the light rays whose first hit maps to
@@ -110,7 +111,7 @@ fn first_hit_power(
     rays: usize,
     seed: u64,
 ) -> (Vec<f64>, f64) {
-    use skelight::integrator::subpath::start_light_subpath;
+    use skelight::paths::subpath::start_light_subpath;
     let (mut sums, mut all) = (vec![0.0f64; guide.graph.nodes.len()], 0.0);
     for i in 0..rays {
         let mut rng = Rng::new(seed, u64::MAX, i as u64);
@@ -130,8 +131,8 @@ fn first_hit_power(
 /// mixture follow the density the estimator evaluates for MIS.
 #[test]
 fn skeleton_mixture_samples_its_density_at_real_vertices() {
-    let (scene, skelpt) = prepared_two_rooms(32);
-    let (guide, directions) = skelpt.guide().expect("the corridor's skeleton guides skelpt");
+    let (scene, guidance) = prepared_two_rooms(32);
+    let (guide, directions) = (&*guidance.guide, &guidance.directions);
     let strength = 8.0;
     // The camera's first hits whose targets point in the most different directions (where
     // reading one target's lobe instead of the sum would show).
@@ -172,7 +173,8 @@ fn skeleton_mixture_samples_its_density_at_real_vertices() {
 /// note saying why, never a panic or a non-finite pixel.
 #[test]
 fn skelpt_refuses_absurd_parameters_and_falls_back_where_it_cannot_guide() {
-    use skelight::integrator::{registry, render, RenderOptions};
+    use skelight::estimators::registry;
+    use skelight::integrator::{render, RenderOptions};
     for (name, value, expected) in [
         ("strength", "-1", "outside"),
         ("c_skel", "1.5", "outside [0, 0.99]"),
@@ -208,7 +210,7 @@ fn skelpt_refuses_absurd_parameters_and_falls_back_where_it_cannot_guide() {
 /// estimator); the command line's parameters win over them.
 #[test]
 fn scene_integrator_properties_set_skelpt_parameters() {
-    use skelight::integrator::registry::create_for_scene;
+    use skelight::estimators::registry::create_for_scene;
     let scene = common::edited_conformance_scene(
         "c01_cbox_area",
         |t| {
@@ -303,8 +305,8 @@ fn one_bounce_is_the_first_hit_estimate() {
 /// the same mixture at half the cost on Sponza), with probabilities that sum to 1.
 #[test]
 fn each_importance_point_is_one_target() {
-    let (_, skelpt) = prepared_two_rooms(16);
-    let (guide, directions) = skelpt.guide().expect("guided");
+    let (_, guidance) = prepared_two_rooms(16);
+    let (guide, directions) = (&*guidance.guide, &guidance.directions);
     let mut several = 0;
     for node in 0..guide.graph.nodes.len() as u32 {
         let targets = directions.at(node);
@@ -318,4 +320,20 @@ fn each_importance_point_is_one_target() {
         several += (targets.len() > 1) as usize;
     }
     assert!(several > 0, "no node has several targets");
+}
+
+/// The analysis keeps what portal-guided sampling and the visibility gates read: the raw
+/// skeleton beside the filtered one, the opening-forest regions and the portals between
+/// them, whose region graph links each portal's two regions both ways.
+#[test]
+fn the_analysis_keeps_regions_portals_and_the_raw_skeleton() {
+    let mut scene = skelight::scene::builtin::two_rooms();
+    scene.set_resolution(16, 16);
+    let (guide, _) = skelight::guided::guide_for(&scene, &skelight::guided::GuideSettings { resolution: 64 }).unwrap();
+    assert!(guide.raw.nodes.len() >= guide.graph.nodes.len(), "the raw skeleton has fewer nodes than the filtered");
+    assert!(guide.labelling.count >= 2 && !guide.portals.is_empty(), "two rooms and a door: regions and a portal");
+    let graph = guide.region_graph();
+    for (i, p) in guide.portals.iter().enumerate() {
+        assert!(graph[p.from as usize].contains(&(p.to, i)) && graph[p.to as usize].contains(&(p.from, i)));
+    }
 }

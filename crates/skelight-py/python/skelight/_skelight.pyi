@@ -56,6 +56,7 @@ def render(
     threads: int = 0,
     progress: Optional[Callable[[Dict[str, Any]], None]] = None,
     device: str = "cpu",
+    debug: Optional[Union[str, PathLike[str]]] = None,
 ) -> Render: ...
 def render_key(
     scene: Scene,

@@ -9,8 +9,10 @@ use std::hash::{Hash, Hasher};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use skelight_shape::labeling::Labelling;
 use skelight_shape::mapping::NodeMapping;
 use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings, Anchor, Resolution};
+use skelight_shape::portals::Portal;
 use skelight_shape::skeleton::SkeletonGraph;
 
 use crate::light::Light;
@@ -37,6 +39,12 @@ pub struct SkeletonGuide {
     pub graph: SkeletonGraph,
     /// Which node each empty voxel maps to (Alg. 5); surface points via eq. 151–155.
     pub mapping: NodeMapping,
+    /// The skeleton before filtering (thesis §6.3), for the visibility gates (ch. 7).
+    pub raw: SkeletonGraph,
+    /// The opening-forest regions of the empty voxels (§6.2.2), for portal-guided sampling.
+    pub labelling: Labelling,
+    /// The portals between regions (ch. 10): each joins two regions of `labelling`.
+    pub portals: Vec<Portal>,
     /// Stages of the analysis and their wall times in seconds (zero when cached).
     pub timings: Vec<(String, f64)>,
     /// Memory kept for sampling, in bytes.
@@ -62,10 +70,37 @@ impl SkeletonGuide {
     fn from_analysis(a: Analysis, seconds: f64) -> SkeletonGuide {
         let mut timings: Vec<(String, f64)> = a.timings.iter().map(|(s, t)| (s.to_string(), *t)).collect();
         timings.push(("empty-space analysis (total)".into(), seconds));
+        let node = std::mem::size_of::<skelight_shape::skeleton::Node>();
         let bytes = a.mapping.grid.data.len() * 4
-            + a.filtered.nodes.len() * std::mem::size_of::<skelight_shape::skeleton::Node>()
-            + a.filtered.edges.len() * 8;
-        SkeletonGuide { graph: a.filtered, mapping: a.mapping, timings, bytes }
+            + a.filtered.nodes.len() * node
+            + a.filtered.edges.len() * 8
+            + a.skeleton.nodes.len() * node
+            + a.skeleton.edges.len() * 8
+            + a.labelling.labels.data.len() * 4
+            + a.portals.iter().map(|p| p.squares.len() * 16).sum::<usize>();
+        SkeletonGuide {
+            graph: a.filtered,
+            mapping: a.mapping,
+            raw: a.skeleton,
+            labelling: a.labelling,
+            portals: a.portals,
+            timings,
+            bytes,
+        }
+    }
+
+    /// The region graph: for every opening-forest region (1..=count; index 0 unused), the
+    /// regions it shares a portal with and that portal's index in [`SkeletonGuide::portals`].
+    pub fn region_graph(&self) -> Vec<Vec<(u32, usize)>> {
+        let mut graph = vec![Vec::new(); self.labelling.count as usize + 1];
+        for (i, p) in self.portals.iter().enumerate() {
+            for (a, b) in [(p.from, p.to), (p.to, p.from)] {
+                if let Some(links) = graph.get_mut(a as usize) {
+                    links.push((b, i));
+                }
+            }
+        }
+        graph
     }
 }
 

@@ -12,9 +12,9 @@
 use rayon::prelude::*;
 
 use super::SkeletonGuide;
-use crate::integrator::subpath::{random_walk, start_light_subpath, VertexSink};
-use crate::integrator::vertex::{Vertex, VertexKind};
 use crate::material::TransportMode;
+use crate::paths::subpath::{random_walk, start_light_subpath, VertexSink};
+use crate::paths::vertex::{Vertex, VertexKind};
 use crate::sampling::Rng;
 use crate::scene::Scene;
 

@@ -2,15 +2,14 @@
 //! triangles, camera and lights ([`analysis`]), kept in a form the hot loop reads without
 //! locks ([`SkeletonGuide`]: the filtered skeleton graph and its node mapping grid), the
 //! light-driven importance of its nodes ([`importance`]) and the directions towards them
-//! ([`directions`]). The guided estimators (`skelpt`, and after it `skelbpt`, `portalpt`)
-//! build on these.
+//! ([`directions`]). The guided estimators (`skelpt`, `skelbpt`, and after them `portalpt`)
+//! build on these; nothing here knows an estimator.
 
 pub mod analysis;
-pub mod candidates;
 pub mod directions;
+pub mod guidance;
 pub mod importance;
-pub mod importance_cache;
-pub mod kdtree;
-pub mod resampling;
+pub mod pictures;
 
 pub use analysis::{guide_for, GuideSettings, SkeletonGuide};
+pub use guidance::{Guidance, GuidanceSettings};

@@ -1,29 +1,19 @@
-//! Estimators and the progressive, multi-threaded render loop that drives them.
+//! The contract every estimator meets ([`Integrator`]) and the progressive, multi-threaded
+//! render loop that drives them (one shared tile loop, as pbrt-v4's). The estimators
+//! themselves are leaves in [`crate::estimators`], offered through its registry.
 //!
 //! Every sample draws its random numbers from a generator seeded by (seed, pixel, sample
 //! index), and tiles are merged in a fixed order, so a render is a pure function of the
 //! scene, the estimator, the seed and the sample count: thread count does not matter.
 
-pub mod bpt;
-pub mod ibpt;
-pub mod icbpt;
-pub mod lt;
-pub mod mis;
-pub mod mutation;
+pub mod diagnostics;
 pub mod params;
-pub mod pt;
-pub mod registry;
-pub mod resampled;
-pub mod skelbpt;
-pub mod skelpt;
-pub mod strategies;
-pub mod subpath;
-pub mod vertex;
 
 use std::any::Any;
 use std::time::{Duration, Instant};
 
 use crate::film::{Film, FilmTile};
+use crate::paths::subpath;
 use crate::sampling::Rng;
 use crate::scene::Scene;
 
@@ -85,10 +75,15 @@ pub trait Integrator: Sync + Send {
     fn report(&self) -> Vec<String> {
         Vec::new()
     }
-    /// The estimator as its own type, for tools that picture its internals (skelbpt's
-    /// nodes); `None` for those that offer none.
-    fn as_any(&self) -> Option<&dyn Any> {
-        None
+    /// The parts its image splits into for `render --debug` ([`diagnostics::DebugParts`]),
+    /// if it offers any; an error where it cannot for this scene (why).
+    fn debug_parts(&self, _scene: &Scene) -> Result<Option<diagnostics::DebugParts>, String> {
+        Ok(None)
+    }
+    /// Pictures of its internals for `render --debug`, after [`Integrator::prepare`] and the
+    /// render (skelpt's guidance, skelbpt's nodes); empty for most.
+    fn debug_files(&self, _scene: &Scene) -> Vec<diagnostics::DebugFile> {
+        Vec::new()
     }
 }
 
@@ -320,9 +315,4 @@ pub fn render(
         }
     }
     Ok(RenderResult { film, spp: done, elapsed: start.elapsed(), preparation })
-}
-
-/// Builds an estimator by name with its default parameters (see [`registry`]).
-pub fn by_name(name: &str) -> Option<Box<dyn Integrator>> {
-    registry::create(name, &[]).ok()
 }

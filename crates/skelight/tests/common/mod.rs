@@ -287,7 +287,7 @@ pub fn judge_against_reference(
 /// pixel, estimated from skelight's own path tracer (the estimator Mitsuba used) at
 /// `spp` samples and scaled to the reference's sample count.
 pub fn reference_noise(scene: &Scene, spp: u32, ref_spp: u32) -> Image {
-    let mut pt = skelight::integrator::by_name("pt").expect("pt");
+    let mut pt = skelight::estimators::by_name("pt").expect("pt");
     let var = render_spp(scene, pt.as_mut(), spp, 0x005E_ED0F_4E5E).variance_image();
     let scale = spp as f32 / ref_spp as f32;
     Image { pixels: var.pixels.iter().map(|p| *p * scale).collect(), ..var }
@@ -351,7 +351,7 @@ pub fn every_estimator() -> Vec<(&'static str, u32)> {
 /// variance estimate at a quarter of the samples (the near-clipped box's pt-against-lt block
 /// T reached 3.2 there).
 pub fn every_estimator_at_full_count() -> Vec<(&'static str, u32)> {
-    skelight::integrator::registry::names()
+    skelight::estimators::registry::names()
         .into_iter()
         .map(|name| {
             let spp = match name {
@@ -370,8 +370,8 @@ pub fn estimators_agree(scene: &Scene, runs: &[(&str, u32)]) {
     let renders: Vec<(&str, Image, Image)> = runs
         .iter()
         .filter_map(|&(name, spp)| {
-            let (estimator, params) = skelight::integrator::registry::parse_spec(name).unwrap();
-            let mut i = skelight::integrator::registry::create(&estimator, &params).unwrap();
+            let (estimator, params) = skelight::estimators::registry::parse_spec(name).unwrap();
+            let mut i = skelight::estimators::registry::create(&estimator, &params).unwrap();
             if let Some(why) = i.limitation(scene) {
                 println!("{name} skipped: {why}");
                 return None;
@@ -449,7 +449,7 @@ pub fn per_distribution_parts_add_up(scene: &Scene, estimator: &str, params: &[(
     let image = |only: &str| {
         let mut p: Vec<(String, String)> = params.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
         p.push(("only".into(), only.into()));
-        let mut i = skelight::integrator::registry::create(estimator, &p).unwrap();
+        let mut i = skelight::estimators::registry::create(estimator, &p).unwrap();
         skelight::integrator::render(scene, i.as_mut(), &opts, None, |_, _| true).unwrap().film.image()
     };
     let all = image("all");
@@ -467,31 +467,14 @@ pub fn per_distribution_parts_add_up(scene: &Scene, estimator: &str, params: &[(
 
 /// The conformance manifest's entries: name, Mitsuba's image mean and its sample count.
 pub fn manifest(dir: &std::path::Path) -> Vec<(String, [f64; 3], u32)> {
-    let text = std::fs::read_to_string(dir.join("refs/manifest.json")).expect("manifest.json");
-    // Minimal reader for {"name": {"mean": [r, g, b], ..., "spp": n}, ...}.
-    let mut out = Vec::new();
-    let mut rest = text.as_str();
-    while let Some(i) = rest.find("\"mean\"") {
-        let head = &rest[..i];
-        let name_end = head.rfind("\": {").expect("entry name");
-        let name_start = head[..name_end].rfind('"').expect("entry name") + 1;
-        let name = head[name_start..name_end].to_string();
-        let body = &rest[i..];
-        let lb = body.find('[').unwrap();
-        let rb = body.find(']').unwrap();
-        let v: Vec<f64> = body[lb + 1..rb].split(',').map(|s| s.trim().parse().unwrap()).collect();
-        let spp_at = body.find("\"spp\"").unwrap();
-        let spp: u32 = body[spp_at + 6..]
-            .trim_start_matches([':', ' '])
-            .split(|c: char| !c.is_ascii_digit())
-            .next()
-            .unwrap()
-            .parse()
-            .unwrap();
-        out.push((name, [v[0], v[1], v[2]], spp));
-        rest = &body[rb..];
+    #[derive(serde::Deserialize)]
+    struct Entry {
+        mean: [f64; 3],
+        spp: u32,
     }
-    out
+    let text = std::fs::read_to_string(dir.join("refs/manifest.json")).expect("manifest.json");
+    let entries: std::collections::BTreeMap<String, Entry> = serde_json::from_str(&text).expect("manifest.json parses");
+    entries.into_iter().map(|(name, e)| (name, e.mean, e.spp)).collect()
 }
 
 /// The seeds of the conformance suite's two renders.

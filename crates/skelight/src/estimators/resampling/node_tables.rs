@@ -24,11 +24,17 @@ use rayon::prelude::*;
 
 use super::candidates::{Candidates, Table};
 pub use super::candidates::{Combination, Draw};
-use super::SkeletonGuide;
-use crate::integrator::mis::Heuristic;
-use crate::integrator::subpath::LightPaths;
-use crate::integrator::vertex::Vertex;
-use crate::math::Vec3;
+use std::sync::Arc;
+
+use crate::guided::analysis::prepare_guide;
+use crate::guided::{GuideSettings, SkeletonGuide};
+use crate::integrator::{Preparation, PrepareError};
+use crate::math::{vec2, Vec3};
+use crate::paths::mis::Heuristic;
+use crate::paths::subpath::{camera_subpath, LightPaths};
+use crate::paths::vertex::{Vertex, VertexKind};
+use crate::paths::visibility::light_visible;
+use crate::sampling::Rng;
 use crate::scene::Scene;
 
 /// Which distribution a resampled candidate is credited to (thesis Fig. 106).
@@ -139,7 +145,7 @@ impl Resampling {
                 build_table(scene, at, pool.eligible(s), vertex, input.combination)
             })
             .collect();
-        (self.tables, self.stats) = crate::integrator::resampled::table_stats(built, input.accepted.len(), clock);
+        (self.tables, self.stats) = super::join::table_stats(built, input.accepted.len(), clock);
     }
 
     /// Draws a candidate for an eye vertex mapped to `node` at light depth `s` ≥ 2 with the
@@ -190,9 +196,94 @@ fn build_table<'a>(
         let y = vertex(c);
         let d2 = (at - y.p()).length_squared().max(1e-12) as f64;
         weights.push((y.beta.luminance().max(0.0) as f64) / d2);
-        seen.push(!scene.occluded(&y.si.spawn_ray_to(at)));
+        seen.push(light_visible(scene, &y.si, Some(at), Vec3::ZERO));
     }
     let visible = seen.iter().filter(|v| **v).count() as u64;
     let (probabilities, origins) = super::candidates::combine(&weights, &seen, combination);
     (Table::new(&probabilities, origins), m as u64, visible)
+}
+
+/// Seed of the pilot eye sub-paths (fixed: the preparation is part of the estimator).
+const PILOT_SEED: u64 = 0x70_696c_6f74;
+
+/// §11.4: the nodes at least `acceptance` times the mean count mapped to (and at least
+/// one).
+pub fn accept(mapped: &[u64], acceptance: f64) -> Vec<u32> {
+    let mean = mapped.iter().sum::<u64>() as f64 / mapped.len().max(1) as f64;
+    (0..mapped.len() as u32)
+        .filter(|&n| {
+            let m = mapped[n as usize];
+            m > 0 && m as f64 >= acceptance * mean
+        })
+        .collect()
+}
+
+/// Eye vertices (t ≥ 2) of pilot camera sub-paths mapped to each node, and how many
+/// sub-paths were traced: one per 16 pixels, at least 1024 and at most 16 384.
+fn pilot_counts(scene: &Scene, guide: &SkeletonGuide, max_depth: i32) -> (Vec<u64>, usize) {
+    use rayon::prelude::*;
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    let count = (w * h / 16).clamp(1024, 16_384);
+    let nodes = guide.graph.nodes.len();
+    let chunks = count.div_ceil(256);
+    let mapped = (0..chunks)
+        .into_par_iter()
+        .map(|c| {
+            let mut counts = vec![0u64; nodes];
+            let mut path = Vec::new();
+            for i in c * 256..((c + 1) * 256).min(count) {
+                let mut rng = Rng::new(PILOT_SEED, i as u64, 0);
+                let raster = vec2(rng.next_f32() * w as f32, rng.next_f32() * h as f32);
+                camera_subpath(scene, raster, &mut rng, max_depth, &mut path);
+                for z in path.iter().skip(1).filter(|z| z.kind == VertexKind::Surface && z.can_connect(scene)) {
+                    if let Some(n) = guide.node_at(z.p(), z.n(), z.si.wi) {
+                        counts[n as usize] += 1;
+                    }
+                }
+            }
+            counts
+        })
+        .reduce(
+            || vec![0u64; nodes],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    (mapped, count)
+}
+
+/// The skeleton `skelbpt` resamples with and the nodes that get tables (§11.4), as its
+/// preparation makes them: the analysis, pilot eye sub-paths' counts per node, and the
+/// nodes accepted for the first pass.
+pub struct NodeSelection {
+    pub guide: Arc<SkeletonGuide>,
+    /// Eye vertices mapped to each node so far (pilot, then finished passes).
+    pub mapped: Vec<u64>,
+    /// The nodes that get tables in the current pass.
+    pub accepted: Vec<u32>,
+}
+
+impl NodeSelection {
+    /// Analyses `scene` and runs the pilot, with stages and notes added to `prep`.
+    pub fn prepare(
+        scene: &Scene,
+        settings: &GuideSettings,
+        acceptance: f64,
+        max_depth: i32,
+        prep: &mut Preparation,
+    ) -> Result<NodeSelection, PrepareError> {
+        let guide = prepare_guide(scene, settings, prep)?;
+        let lap = std::time::Instant::now();
+        let (mapped, pilots) = pilot_counts(scene, &guide, max_depth);
+        prep.stages.push(("pilot eye sub-paths (node acceptance, section 11.4)".into(), lap.elapsed().as_secs_f64()));
+        let accepted = accept(&mapped, acceptance);
+        prep.notes.push(format!(
+            "skeleton: {} nodes; {pilots} pilot eye sub-paths reached {}; {} accepted for the first pass (alpha = {acceptance})",
+            guide.graph.nodes.len(),
+            mapped.iter().filter(|m| **m > 0).count(),
+            accepted.len(),
+        ));
+        Ok(NodeSelection { guide, mapped, accepted })
+    }
 }

@@ -33,12 +33,13 @@ use rayon::prelude::*;
 
 use super::candidates::{uniform_position, uniform_position_probability, Candidates, Combination, Draw, Table};
 use super::kdtree::KdTree;
-use super::resampling::BuildStats;
-use crate::integrator::mis::Heuristic;
-use crate::integrator::strategies::{edge, visible};
-use crate::integrator::subpath::{camera_subpath, LightPaths};
-use crate::integrator::vertex::{Vertex, VertexKind};
+use super::node_tables::BuildStats;
 use crate::math::{vec2, Vec3};
+use crate::paths::mis::Heuristic;
+use crate::paths::strategies::edge;
+use crate::paths::subpath::{camera_subpath, LightPaths};
+use crate::paths::vertex::{Vertex, VertexKind};
+use crate::paths::visibility::visible;
 use crate::sampling::Rng;
 use crate::scene::Scene;
 
@@ -123,7 +124,7 @@ impl ImportanceCache {
             .into_par_iter()
             .map(|k| build_table(scene, &records[k / depths], pool, k % depths + 2, input.combination))
             .collect();
-        (self.tables, self.stats) = crate::integrator::resampled::table_stats(built, records.len(), clock);
+        (self.tables, self.stats) = super::join::table_stats(built, records.len(), clock);
     }
 
     /// Number of records this iteration.

@@ -3,7 +3,7 @@
 //! 000). Each iteration traces one light sub-path per pixel, as `bpt`, and draws N of them
 //! as candidates; every node that enough eye vertices mapped to so far (§11.4) gets, per
 //! light depth s, a table combining the distributions V, U and C of eq. 187–190
-//! ([`crate::guided::resampling`]). Each eye vertex z_t (t ≥ 2) finds its node through the
+//! ([`super::node_tables`]). Each eye vertex z_t (t ≥ 2) finds its node through the
 //! mapping grid (eq. 151–155) and, for every s ≥ 2, joins one candidate's y_s drawn from its
 //! node's table, its contribution divided by N times the draw's probability (eq. 186,
 //! 191): an unbiased estimate of the average over the N candidates of that (s, t)
@@ -35,27 +35,22 @@
 //! With `combination=balance` a draw is credited to the distribution that gives it the
 //! highest probability, as under max, for the per-distribution images.
 
-use std::sync::Arc;
-
-use super::bpt::{Bpt, PixelPaths, PixelScratch, Recorded};
-use super::mis::Heuristic;
-use super::params::{ParamKind, ParamSpec, Params};
-use super::resampled::{self, Only};
-pub use super::resampled::{resampled_join, Join};
-use super::subpath::camera_subpath;
-use super::vertex::VertexKind;
-use super::{Integrator, Iteration, Preparation, PrepareError, SampleContext, Scratch};
+use super::join::{self, Only};
+use super::node_tables::{accept, BuildInput, Combination, NodeSelection, Resampling};
 use crate::color::Rgb;
-use crate::guided::analysis::prepare_guide;
-use crate::guided::resampling::{BuildInput, BuildStats, Combination, Resampling};
+use crate::guided::pictures::node_use_picture;
 use crate::guided::{GuideSettings, SkeletonGuide};
-use crate::math::vec2;
+use crate::integrator::diagnostics::{DebugFile, DebugParts};
+use crate::integrator::params::{ParamKind, ParamSpec, Params};
+use crate::integrator::{Integrator, Iteration, Preparation, PrepareError, SampleContext, Scratch};
+use crate::paths::bidir::{PixelPaths, PixelSampler, PixelScratch, Recorded};
+use crate::paths::mis::Heuristic;
 use crate::sampling::Rng;
 use crate::scene::Scene;
 
 /// skelbpt's parameters, as the registry offers them.
 pub const PARAMS: &[ParamSpec] = &[
-    resampled::CANDIDATES,
+    join::CANDIDATES,
     ParamSpec {
         name: "acceptance",
         kind: ParamKind::Float { min: 0.0, max: 1000.0 },
@@ -69,34 +64,24 @@ pub const PARAMS: &[ParamSpec] = &[
         default: "max",
         doc: "how each node's V, U and C distributions combine: the max heuristic folded in (the thesis), or balance",
     },
-    super::params::SKELETON_RESOLUTION,
-    super::params::MIS_HEURISTIC,
-    resampled::ONLY,
+    crate::integrator::params::SKELETON_RESOLUTION,
+    crate::integrator::params::MIS_HEURISTIC,
+    join::ONLY,
 ];
 
-/// Seed of the pilot eye sub-paths (fixed: the preparation is part of the estimator).
-const PILOT_SEED: u64 = 0x70_696c_6f74;
-
 pub struct SkeletonBpt {
-    bpt: Bpt,
+    bpt: PixelSampler,
     pub candidates: usize,
     pub acceptance: f64,
     pub combination: Combination,
     pub resolution: usize,
     /// What it records (for per-distribution images).
     only: Only,
-    prepared: Option<Prepared>,
+    /// The parameters it was made from (its per-distribution variants differ in `only`).
+    params: Params,
+    prepared: Option<NodeSelection>,
     /// What the iterations' builds cost, summed.
-    stats: resampled::BuildLog,
-}
-
-/// What sampling reads.
-struct Prepared {
-    guide: Arc<SkeletonGuide>,
-    /// Eye vertices mapped to each node so far (pilot and finished passes).
-    mapped: Vec<u64>,
-    /// The nodes that get tables in the current pass.
-    accepted: Vec<u32>,
+    stats: join::BuildLog,
 }
 
 /// A tile's buffers, and the eye vertices its samples mapped to each node.
@@ -111,14 +96,15 @@ impl SkeletonBpt {
         let heuristic = Heuristic::parse(p.choice("heuristic")).unwrap_or_default();
         let recorded = if only.records_unresampled() { Recorded::All } else { Recorded::Nothing };
         SkeletonBpt {
-            bpt: Bpt { max_depth: None, heuristic, only: recorded },
+            bpt: PixelSampler { max_depth: None, heuristic, only: recorded },
             candidates: p.int("candidates") as usize,
             acceptance: p.float("acceptance"),
             combination: Combination::parse(p.choice("combination")),
             resolution: p.int("resolution") as usize,
             only,
+            params: p.clone(),
             prepared: None,
-            stats: resampled::BuildLog::default(),
+            stats: join::BuildLog::default(),
         }
     }
 
@@ -126,11 +112,6 @@ impl SkeletonBpt {
     /// [`Integrator::prepare`]).
     pub fn nodes(&self) -> Option<(&SkeletonGuide, &[u32], &[u64])> {
         self.prepared.as_ref().map(|p| (&*p.guide, &p.accepted[..], &p.mapped[..]))
-    }
-
-    /// What the iterations' table builds cost so far, and the most memory one held.
-    pub fn build_stats(&self) -> (BuildStats, usize) {
-        self.stats.get()
     }
 
     /// The joins of camera vertex t with one candidate per light depth s ≥ 2, drawn from
@@ -144,13 +125,13 @@ impl SkeletonBpt {
         rng: &mut Rng,
         mapped: &mut [u32],
     ) -> Rgb {
-        let Some(z) = resampled::joinable(scene, paths, t) else { return Rgb::BLACK };
+        let Some(z) = join::joinable(scene, paths, t) else { return Rgb::BLACK };
         let node = guide.node_at(z.p(), z.n(), z.si.wi);
         if let Some(n) = node {
             mapped[n as usize] += 1;
         }
         let draw = |s: usize, rng: &mut Rng| table.draw(node, s, rng.next_u32());
-        resampled::joins_at(&self.bpt, scene, table, paths, t, rng, self.only, draw)
+        join::joins_at(&self.bpt, scene, table, paths, t, rng, self.only, draw)
     }
 }
 
@@ -179,19 +160,9 @@ impl Integrator for SkeletonBpt {
             prep.notes.push("the scene has no lights: plain bpt".into());
             return Ok(prep);
         }
-        let guide = prepare_guide(scene, &GuideSettings { resolution: self.resolution }, &mut prep)?;
-        let lap = std::time::Instant::now();
-        let (mapped, pilots) = pilot_counts(scene, &guide, self.bpt.max_depth(scene));
-        prep.stages.push(("pilot eye sub-paths (node acceptance, section 11.4)".into(), lap.elapsed().as_secs_f64()));
-        let accepted = accept(&mapped, self.acceptance);
-        prep.notes.push(format!(
-            "skeleton: {} nodes; {pilots} pilot eye sub-paths reached {}; {} accepted for the first pass (alpha = {})",
-            guide.graph.nodes.len(),
-            mapped.iter().filter(|m| **m > 0).count(),
-            accepted.len(),
-            self.acceptance
-        ));
-        self.prepared = Some(Prepared { guide, mapped, accepted });
+        let settings = GuideSettings { resolution: self.resolution };
+        self.prepared =
+            Some(NodeSelection::prepare(scene, &settings, self.acceptance, self.bpt.max_depth(scene), &mut prep)?);
         Ok(prep)
     }
 
@@ -204,7 +175,7 @@ impl Integrator for SkeletonBpt {
     }
 
     fn prepare_iteration(&self, scene: &Scene, seed: u64, index: u64, into: &mut Iteration) {
-        self.bpt.prepare_iteration(scene, seed, index, into);
+        self.bpt.trace_light_paths(scene, seed, index, &mut into.light_paths);
         let Some(p) = &self.prepared else { return };
         let (light_paths, table) = into.with_extra::<Resampling>();
         let input = BuildInput {
@@ -213,7 +184,7 @@ impl Integrator for SkeletonBpt {
             candidates: self.candidates,
             combination: self.combination,
             heuristic: self.bpt.heuristic,
-            deepest: resampled::deepest_join(self.bpt.max_depth(scene)),
+            deepest: join::deepest_join(self.bpt.max_depth(scene)),
             seed,
             iteration: index,
         };
@@ -235,7 +206,7 @@ impl Integrator for SkeletonBpt {
             }),
             _ => None,
         };
-        resampled::sample_pixel(&self.bpt, scene, (x, y), rng, it, buffers, cx.tile, joins);
+        join::sample_pixel(&self.bpt, scene, (x, y), rng, it, buffers, cx.tile, joins);
     }
 
     fn learns_across_passes(&self) -> bool {
@@ -252,58 +223,17 @@ impl Integrator for SkeletonBpt {
         p.accepted = accept(&p.mapped, self.acceptance);
     }
 
-    fn as_any(&self) -> Option<&dyn std::any::Any> {
-        Some(self)
+    fn debug_files(&self, scene: &Scene) -> Vec<DebugFile> {
+        let Some((guide, accepted, mapped)) = self.nodes() else { return Vec::new() };
+        let image = node_use_picture(scene, guide, accepted, mapped);
+        vec![DebugFile::Png { name: "nodes_view.png".into(), image }]
+    }
+
+    fn debug_parts(&self, _scene: &Scene) -> Result<Option<DebugParts>, String> {
+        join::distribution_parts(&self.params, |p| Box::new(SkeletonBpt::from_params(p)))
     }
 
     fn report(&self) -> Vec<String> {
         self.stats.report("nodes accepted")
     }
-}
-
-/// §11.4: the nodes at least `acceptance` times the mean count mapped to (and at least
-/// one).
-fn accept(mapped: &[u64], acceptance: f64) -> Vec<u32> {
-    let mean = mapped.iter().sum::<u64>() as f64 / mapped.len().max(1) as f64;
-    (0..mapped.len() as u32)
-        .filter(|&n| {
-            let m = mapped[n as usize];
-            m > 0 && m as f64 >= acceptance * mean
-        })
-        .collect()
-}
-
-/// Eye vertices (t ≥ 2) of pilot camera sub-paths mapped to each node, and how many
-/// sub-paths were traced: one per 16 pixels, at least 1024 and at most 16 384.
-fn pilot_counts(scene: &Scene, guide: &SkeletonGuide, max_depth: i32) -> (Vec<u64>, usize) {
-    use rayon::prelude::*;
-    let (w, h) = (scene.settings.width, scene.settings.height);
-    let count = (w * h / 16).clamp(1024, 16_384);
-    let nodes = guide.graph.nodes.len();
-    let chunks = count.div_ceil(256);
-    let mapped = (0..chunks)
-        .into_par_iter()
-        .map(|c| {
-            let mut counts = vec![0u64; nodes];
-            let mut path = Vec::new();
-            for i in c * 256..((c + 1) * 256).min(count) {
-                let mut rng = Rng::new(PILOT_SEED, i as u64, 0);
-                let raster = vec2(rng.next_f32() * w as f32, rng.next_f32() * h as f32);
-                camera_subpath(scene, raster, &mut rng, max_depth, &mut path);
-                for z in path.iter().skip(1).filter(|z| z.kind == VertexKind::Surface && z.can_connect(scene)) {
-                    if let Some(n) = guide.node_at(z.p(), z.n(), z.si.wi) {
-                        counts[n as usize] += 1;
-                    }
-                }
-            }
-            counts
-        })
-        .reduce(
-            || vec![0u64; nodes],
-            |mut a, b| {
-                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                a
-            },
-        );
-    (mapped, count)
 }

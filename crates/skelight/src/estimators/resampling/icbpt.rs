@@ -4,7 +4,7 @@
 //! Each iteration traces one light sub-path per pixel, as `bpt`, draws N of them as
 //! candidates (as `skelbpt`), and traces d·pixels sparse eye sub-paths whose vertices
 //! become records, each with a table per light depth over the candidates
-//! ([`crate::guided::importance_cache`]: the full distribution with visibility, the
+//! ([`super::importance_cache`]: the full distribution with visibility, the
 //! unoccluded one and the conservative one, combined by the max heuristic). Each eye vertex
 //! z_t (t ≥ 2) finds its nearest records in a kd-tree and, for every s ≥ 2, joins one
 //! candidate's y_s drawn from them, its contribution divided by N times the draw's
@@ -16,21 +16,21 @@
 //! Per-distribution images: `only=V` (Georgiev's full), `U` (unoccluded), `C`
 //! (conservative), `fallback`, `unresampled`.
 
-use super::bpt::{Bpt, PixelPaths, PixelScratch, Recorded};
-use super::mis::Heuristic;
-use super::params::{ParamKind, ParamSpec, Params};
-use super::resampled::{self, Only};
-use super::{Integrator, Iteration, Preparation, PrepareError, SampleContext, Scratch};
+use super::candidates::Combination;
+use super::importance_cache::{CacheInput, ImportanceCache, Nearby};
+use super::join::{self, Only};
 use crate::color::Rgb;
-use crate::guided::candidates::Combination;
-use crate::guided::importance_cache::{CacheInput, ImportanceCache, Nearby};
-use crate::guided::resampling::BuildStats;
+use crate::integrator::diagnostics::DebugParts;
+use crate::integrator::params::{ParamKind, ParamSpec, Params};
+use crate::integrator::{Integrator, Iteration, Preparation, PrepareError, SampleContext, Scratch};
+use crate::paths::bidir::{PixelPaths, PixelSampler, PixelScratch, Recorded};
+use crate::paths::mis::Heuristic;
 use crate::sampling::Rng;
 use crate::scene::Scene;
 
 /// icbpt's parameters, as the registry offers them.
 pub const PARAMS: &[ParamSpec] = &[
-    resampled::CANDIDATES,
+    join::CANDIDATES,
     ParamSpec {
         name: "density",
         kind: ParamKind::Float { min: 0.0, max: 1.0 },
@@ -50,8 +50,8 @@ pub const PARAMS: &[ParamSpec] = &[
         default: "max",
         doc: "how the (up to 3) records an eye vertex uses combine: the max heuristic (the paper's), or balance",
     },
-    super::params::MIS_HEURISTIC,
-    resampled::ONLY,
+    crate::integrator::params::MIS_HEURISTIC,
+    join::ONLY,
 ];
 
 /// The most the records' tables may take per iteration (a pass holds up to 64 iterations,
@@ -59,16 +59,18 @@ pub const PARAMS: &[ParamSpec] = &[
 pub const TABLE_BUDGET: usize = 512 << 20;
 
 pub struct IcBpt {
-    bpt: Bpt,
+    bpt: PixelSampler,
     pub candidates: usize,
     pub density: f64,
     pub combination: Combination,
     pub records: Combination,
     only: Only,
+    /// The parameters it was made from (its per-distribution variants differ in `only`).
+    params: Params,
     /// Whether the scene has lights to resample (set by `prepare`).
     resamples: bool,
     /// What the iterations' builds cost, summed, and the most memory one held.
-    stats: resampled::BuildLog,
+    stats: join::BuildLog,
 }
 
 /// A tile's buffers.
@@ -84,14 +86,15 @@ impl IcBpt {
         let heuristic = Heuristic::parse(p.choice("heuristic")).unwrap_or_default();
         let recorded = if only.records_unresampled() { Recorded::All } else { Recorded::Nothing };
         IcBpt {
-            bpt: Bpt { max_depth: None, heuristic, only: recorded },
+            bpt: PixelSampler { max_depth: None, heuristic, only: recorded },
             candidates: p.int("candidates") as usize,
             density: p.float("density"),
             combination: Combination::parse(p.choice("combination")),
             records: Combination::parse(p.choice("records")),
             only,
+            params: p.clone(),
             resamples: false,
-            stats: resampled::BuildLog::default(),
+            stats: join::BuildLog::default(),
         }
     }
 
@@ -110,11 +113,6 @@ impl IcBpt {
         (wanted.min(cap), wanted > cap)
     }
 
-    /// What the iterations' builds cost so far, and the most memory one held.
-    pub fn build_stats(&self) -> (BuildStats, usize) {
-        self.stats.get()
-    }
-
     /// The joins of camera vertex t with one candidate per light depth s ≥ 2, drawn from
     /// its nearest records' tables.
     fn resampled_joins(
@@ -126,11 +124,11 @@ impl IcBpt {
         rng: &mut Rng,
         nearby: &mut Nearby,
     ) -> Rgb {
-        let Some(z) = resampled::joinable(scene, paths, t) else { return Rgb::BLACK };
+        let Some(z) = join::joinable(scene, paths, t) else { return Rgb::BLACK };
         cache.nearby(z, nearby);
         let draw =
             |s: usize, rng: &mut Rng| cache.draw(nearby.records(), s, (rng.next_u32(), rng.next_u32()), self.records);
-        resampled::joins_at(&self.bpt, scene, cache, paths, t, rng, self.only, draw)
+        join::joins_at(&self.bpt, scene, cache, paths, t, rng, self.only, draw)
     }
 }
 
@@ -178,7 +176,7 @@ impl Integrator for IcBpt {
     }
 
     fn prepare_iteration(&self, scene: &Scene, seed: u64, index: u64, into: &mut Iteration) {
-        self.bpt.prepare_iteration(scene, seed, index, into);
+        self.bpt.trace_light_paths(scene, seed, index, &mut into.light_paths);
         if !self.resamples {
             return;
         }
@@ -189,7 +187,7 @@ impl Integrator for IcBpt {
             candidates: self.candidates,
             combination: self.combination,
             heuristic: self.bpt.heuristic,
-            deepest: resampled::deepest_join(max_depth),
+            deepest: join::deepest_join(max_depth),
             max_depth,
             seed,
             iteration: index,
@@ -208,11 +206,11 @@ impl Integrator for IcBpt {
         let joins = it.extra::<ImportanceCache>().filter(|_| self.resamples).map(|cache| {
             move |paths: &PixelPaths, t: usize, rng: &mut Rng| self.resampled_joins(scene, cache, paths, t, rng, nearby)
         });
-        resampled::sample_pixel(&self.bpt, scene, (x, y), rng, it, buffers, cx.tile, joins);
+        join::sample_pixel(&self.bpt, scene, (x, y), rng, it, buffers, cx.tile, joins);
     }
 
-    fn as_any(&self) -> Option<&dyn std::any::Any> {
-        Some(self)
+    fn debug_parts(&self, _scene: &Scene) -> Result<Option<DebugParts>, String> {
+        join::distribution_parts(&self.params, |p| Box::new(IcBpt::from_params(p)))
     }
 
     fn report(&self) -> Vec<String> {

@@ -6,61 +6,57 @@
 //! a surface faces the camera): the interiors these methods are for are too noisy to read
 //! in a quick render.
 
-use std::path::{Path, PathBuf};
-
-use anyhow::{Context, Result};
 use rayon::prelude::*;
-use skelight::color::{rgb, Rgb};
-use skelight::geometry::Ray;
-use skelight::imageio::Image;
-use skelight::integrator::skelpt::SkeletonPathTracer;
-use skelight::math::{vec3, Vec3};
-use skelight::scene::{Scene, SurfaceInteraction};
 use skelight_shape::mapping::{surface_voxel, NodeMapping};
 use skelight_shape::pipeline::Analysis;
 use skelight_shape::skeleton::SkeletonGraph;
 
-use crate::skeleton::to_f64;
+use super::analysis::to_f64;
+use super::directions::Directions;
+use super::SkeletonGuide;
+use crate::color::{rgb, Rgb};
+use crate::geometry::Ray;
+use crate::imageio::Image;
+use crate::math::{vec3, Vec3};
+use crate::scene::{Scene, SurfaceInteraction};
 
-/// Writes the pictures of the analysis `a` of `scene`, seen through its camera at its
-/// current resolution, into `dir`. Returns the files written.
-pub fn write(scene: &Scene, a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
+/// The pictures of the analysis `a` of `scene`, seen through its camera at its current
+/// resolution, with their file names.
+pub fn analysis_pictures(scene: &Scene, a: &Analysis) -> Vec<(&'static str, Image)> {
     let (w, h) = (scene.settings.width, scene.settings.height);
     let hits = primary_hits(scene);
     let backdrop = false_colours(w, h, &hits, |_| None);
     let mut written = Vec::new();
-    let mut save = |name: &str, img: &Image| -> Result<()> {
-        let path = dir.join(name);
-        img.save_png(&path, 0.0).with_context(|| format!("writing {}", path.display()))?;
-        written.push(path);
-        Ok(())
-    };
-    save("skeleton_view.png", &with_skeleton(scene, &backdrop, &a.skeleton))?;
-    save("skeleton_filtered_view.png", &with_skeleton(scene, &backdrop, &a.filtered))?;
+    let mut save = |name: &'static str, img: Image| written.push((name, img));
+    save("skeleton_view.png", with_skeleton(scene, &backdrop, &a.skeleton));
+    save("skeleton_filtered_view.png", with_skeleton(scene, &backdrop, &a.filtered));
     let full_mapping = NodeMapping::new(&a.skeleton, &a.empty);
     for (name, mapping) in [("mapping.png", &full_mapping), ("mapping_filtered.png", &a.mapping)] {
         let img = false_colours(w, h, &hits, |si| mapping.node_at(to_f64(si.p), to_f64(si.ng), to_f64(si.wi)));
-        save(name, &img)?;
+        save(name, img);
     }
     let labels = &a.labelling.labels;
     let img = false_colours(w, h, &hits, |si| {
         let labelled = |v: usize| labels.data[v] != 0;
         surface_voxel(&labels.spec, labelled, to_f64(si.p), to_f64(si.ng), to_f64(si.wi)).map(|v| labels.data[v])
     });
-    save("labels.png", &img)?;
-    Ok(written)
+    save("labels.png", img);
+    written
 }
 
 /// Pictures of what guides `skelpt` (prepared for `scene`), seen through the camera at its
-/// current resolution, into `dir`: `importance_view.png` (seed 001 Fig. 2: the filtered
+/// current resolution: `importance_view.png` (seed 001 Fig. 2: the filtered
 /// skeleton, every importance node as a red dot sized by its share of the importance, and
 /// at every node a segment towards its most likely importance point, red at the node, blue
 /// at the far end, ending in a green dot) and `node_per_pixel.png` (the node each pixel's
-/// first hit maps to, as the sampler sees it), and `importance.json`.
-pub fn write_guidance(scene: &Scene, skelpt: &SkeletonPathTracer, dir: &Path) -> Result<Vec<PathBuf>> {
-    let Some((guide, directions)) = skelpt.guide() else {
-        anyhow::bail!("skelpt found no lit skeleton node in this scene: nothing guides it");
-    };
+/// first hit maps to, as the sampler sees it), and the importance nodes for
+/// `importance.json`.
+pub fn guidance_pictures(
+    scene: &Scene,
+    guide: &SkeletonGuide,
+    directions: &Directions,
+    importance: &[(u32, f64)],
+) -> (Vec<(&'static str, Image)>, Vec<ImportanceNode>) {
     let (w, h) = (scene.settings.width, scene.settings.height);
     let hits = primary_hits(scene);
     let backdrop = false_colours(w, h, &hits, |_| None);
@@ -86,35 +82,36 @@ pub fn write_guidance(scene: &Scene, skelpt: &SkeletonPathTracer, dir: &Path) ->
             dot(&mut img, r.x, r.y, 1.8, rgb(0.1, 1.0, 0.1));
         }
     }
-    let total: f64 = skelpt.importance().iter().map(|i| i.1).sum();
-    let mut json = String::from("{\"importance_nodes\": [");
-    for (i, &(node, value)) in skelpt.importance().iter().enumerate() {
+    let total: f64 = importance.iter().map(|i| i.1).sum();
+    let mut listed = Vec::new();
+    for &(node, value) in importance {
         let p = guide.position(node);
         if let Some(r) = project(p) {
             dot(&mut img, r.x, r.y, 2.0 + 6.0 * (value / total.max(1e-30)).sqrt() as f32, rgb(1.0, 0.05, 0.05));
         }
-        let sep = if i == 0 { "" } else { "," };
-        json +=
-            &format!("{sep}\n  {{\"node\": {node}, \"position\": [{}, {}, {}], \"value\": {value}}}", p.x, p.y, p.z);
+        listed.push(ImportanceNode { node, position: [p.x, p.y, p.z], value });
     }
-    json += "\n]}\n";
-    let mut written = Vec::new();
-    let path = dir.join("importance_view.png");
-    img.save_png(&path, 0.0).with_context(|| format!("writing {}", path.display()))?;
-    written.push(path);
     let nodes = false_colours(w, h, &hits, |si| guide.node_at(si.p, si.ng, si.wi));
-    let path = dir.join("node_per_pixel.png");
-    nodes.save_png(&path, 0.0).with_context(|| format!("writing {}", path.display()))?;
-    written.push(path);
-    let path = dir.join("importance.json");
-    crate::write_text(&path, &json)?;
-    written.push(path);
-    Ok(written)
+    (vec![("importance_view.png", img), ("node_per_pixel.png", nodes)], listed)
+}
+
+/// One importance node as `importance.json` lists it.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct ImportanceNode {
+    pub node: u32,
+    pub position: [f32; 3],
+    pub value: f64,
+}
+
+/// `importance.json`'s contents.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct ImportanceFile {
+    pub importance_nodes: Vec<ImportanceNode>,
 }
 
 /// The first hit of a ray through every pixel's centre.
 fn primary_hits(scene: &Scene) -> Vec<Option<SurfaceInteraction>> {
-    crate::bench::pixel_centre_rays(&scene.camera).par_iter().map(|r| scene.intersect(r)).collect()
+    scene.camera.pixel_centre_rays().par_iter().map(|r| scene.intersect(r)).collect()
 }
 
 /// Surface points of the primary hits coloured by the label `label_of` gives them, shaded by
@@ -213,17 +210,11 @@ fn dot(img: &mut Image, x: f32, y: f32, radius: f32, c: Rgb) {
     }
 }
 
-/// `nodes_view.png` in `dir`: the filtered skeleton seen through the camera, with every
-/// node skelbpt built resampling tables for in its last pass as a red dot sized by the
-/// share of eye vertices mapped to it (thesis §11.4), and the nodes reached but not
-/// accepted as small grey dots. Returns the file written.
-pub fn write_node_use(
-    scene: &Scene,
-    guide: &skelight::guided::SkeletonGuide,
-    accepted: &[u32],
-    mapped: &[u64],
-    dir: &Path,
-) -> Result<PathBuf> {
+/// `nodes_view.png`: the filtered skeleton seen through the camera, with every node skelbpt
+/// built resampling tables for in its last pass as a red dot sized by the share of eye
+/// vertices mapped to it (thesis §11.4), and the nodes reached but not accepted as small
+/// grey dots.
+pub fn node_use_picture(scene: &Scene, guide: &SkeletonGuide, accepted: &[u32], mapped: &[u64]) -> Image {
     let (w, h) = (scene.settings.width, scene.settings.height);
     let backdrop = false_colours(w, h, &primary_hits(scene), |_| None);
     let mut img = with_skeleton(scene, &backdrop, &guide.graph);
@@ -237,8 +228,5 @@ pub fn write_node_use(
             dot(&mut img, r.x, r.y, 1.5, rgb(0.6, 0.6, 0.6));
         }
     }
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let path = dir.join("nodes_view.png");
-    img.save_png(&path, 0.0).with_context(|| format!("writing {}", path.display()))?;
-    Ok(path)
+    img
 }

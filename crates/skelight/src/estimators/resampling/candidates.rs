@@ -4,13 +4,13 @@
 //! whose vertex y_s can end a connection; discrete **tables** over those candidates, drawn
 //! with exact integer thresholds; and the **combination** of the three distributions V, U
 //! and C (eq. 188–190) into one table by the max heuristic (§11.3). `skelbpt` caches tables
-//! at skeleton nodes ([`super::resampling`]), `icbpt` at importance records
+//! at skeleton nodes ([`super::node_tables`]), `icbpt` at importance records
 //! ([`super::importance_cache`]).
 
-use super::resampling::Origin;
-use crate::integrator::mis::{running_sums, Heuristic};
-use crate::integrator::subpath::LightPaths;
-use crate::integrator::vertex::{Vertex, VertexKind};
+use super::node_tables::Origin;
+use crate::paths::mis::{running_sums, Heuristic};
+use crate::paths::subpath::LightPaths;
+use crate::paths::vertex::{Vertex, VertexKind};
 use crate::sampling::Rng;
 use crate::scene::Scene;
 

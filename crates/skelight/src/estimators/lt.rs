@@ -7,14 +7,14 @@
 //! lens) is added from one primary ray per sample when the scene has such lights, as
 //! Mitsuba's particle tracer does: its only strategy, so its weight is one.
 
-use super::mis::Heuristic;
-use super::strategies::{self, Weighting};
-use super::subpath::light_subpath;
-use super::vertex::{LensHit, Vertex};
-use super::{Integrator, SampleContext, Scratch};
 use crate::color::Rgb;
 use crate::film::FilmTile;
+use crate::integrator::{Integrator, SampleContext, Scratch};
 use crate::math::vec2;
+use crate::paths::mis::Heuristic;
+use crate::paths::strategies::{self, camera_end_strategies, Weighting};
+use crate::paths::subpath::light_subpath;
+use crate::paths::vertex::{LensHit, Vertex};
 use crate::sampling::Rng;
 use crate::scene::Scene;
 
@@ -22,11 +22,6 @@ use crate::scene::Scene;
 pub struct LightTracer {
     /// Overrides the scene's `max_depth` when set.
     pub max_depth: Option<i32>,
-}
-
-/// Light tracing's strategies: those that end on the camera (t ≤ 1).
-pub fn camera_end_strategies(_s: usize, t: usize) -> bool {
-    t <= 1
 }
 
 /// A tile's buffers for one light sub-path and the lens hits along it.

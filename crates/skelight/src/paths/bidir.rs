@@ -1,28 +1,18 @@
-//! `bpt`: bidirectional path tracing (thesis §4.1.3). Each iteration first traces one light
-//! sub-path per pixel into a shared buffer (eq. 185); each camera sub-path is then joined to
-//! its pixel's light sub-path by every (s, t) strategy, weighted by exact MIS (balance
-//! heuristic by default, power on request).
+//! The bidirectional pixel sampler (thesis §4.1.3): a pixel sample's camera sub-path joined
+//! to a light sub-path by every (s, t) strategy, weighted by exact MIS ([`super::mis`]).
+//! `bpt` joins each pixel's camera sub-path to that pixel's own light sub-path; the
+//! resampling estimators (`skelbpt`, `icbpt`) replace the joins of stored vertices s, t ≥ 2
+//! with resampled ones and keep the rest.
 
 use super::mis::{running_sums, AllStrategies, Heuristic};
 use super::strategies;
-use super::subpath::camera_subpath;
+use super::subpath::{camera_subpath, LightPaths};
 use super::vertex::Vertex;
-use super::{Integrator, Iteration, SampleContext, Scratch};
 use crate::color::Rgb;
 use crate::film::FilmTile;
 use crate::math::vec2;
 use crate::sampling::Rng;
 use crate::scene::Scene;
-
-#[derive(Clone, Debug, Default)]
-pub struct Bpt {
-    /// Overrides the scene's `max_depth` when set.
-    pub max_depth: Option<i32>,
-    pub heuristic: Heuristic,
-    /// Which strategies' weighted contributions it records (one alone for
-    /// `--debug-strategies`).
-    pub only: Recorded,
-}
 
 /// Which of its strategies an estimator records; the others are still sampled, with the
 /// same random numbers, so that images of each add up to the full render.
@@ -54,7 +44,19 @@ pub struct PixelPaths<'a> {
     pub camera_sums: &'a [f32],
 }
 
-impl Bpt {
+/// The bidirectional pixel sampler `bpt` and the resampling estimators share: the camera
+/// sub-path of one pixel sample joined by every (s, t) strategy the path length allows.
+#[derive(Clone, Debug, Default)]
+pub struct PixelSampler {
+    /// Overrides the scene's `max_depth` when set.
+    pub max_depth: Option<i32>,
+    pub heuristic: Heuristic,
+    /// Which strategies' weighted contributions it records (one alone for `bpt`'s
+    /// per-strategy images).
+    pub only: Recorded,
+}
+
+impl PixelSampler {
     pub fn max_depth(&self, scene: &Scene) -> i32 {
         self.max_depth.unwrap_or(scene.settings.max_depth)
     }
@@ -67,9 +69,15 @@ impl Bpt {
         }
     }
 
+    /// Traces an iteration's light sub-paths, one per pixel (eq. 185), into `into`.
+    pub fn trace_light_paths(&self, scene: &Scene, seed: u64, index: u64, into: &mut LightPaths) {
+        let pixels = scene.settings.width * scene.settings.height;
+        into.trace(scene, pixels, seed, index, self.max_depth(scene));
+    }
+
     /// One camera sample of pixel (`x`, `y`), joined by every strategy the path length
     /// allows, weighted by exact MIS: those that need no stored light vertex past the light
-    /// itself here, with the pixel's light sub-path of `it`, and the joins of camera vertex
+    /// itself here, with the pixel's light sub-path of `light_paths`, and the joins of camera vertex
     /// t ≥ 2 with stored light vertices s ≥ 2 by `joins(paths, t, rng)` (the pixel's own
     /// light sub-path in `bpt`, resampled ones in `skelbpt`).
     #[allow(clippy::too_many_arguments)]
@@ -78,14 +86,14 @@ impl Bpt {
         scene: &Scene,
         (x, y): (usize, usize),
         rng: &mut Rng,
-        it: &Iteration,
+        light_paths: &LightPaths,
         buffers: &mut PixelScratch,
         tile: &mut FilmTile,
         joins: &mut impl FnMut(&PixelPaths, usize, &mut Rng) -> Rgb,
     ) {
         let pixel = y * scene.settings.width + x;
-        let (light, hits) = if pixel < it.light_paths.len() {
-            (it.light_paths.path(pixel), it.light_paths.lens_hits(pixel))
+        let (light, hits) = if pixel < light_paths.len() {
+            (light_paths.path(pixel), light_paths.lens_hits(pixel))
         } else {
             (&[][..], &[][..])
         };
@@ -156,39 +164,5 @@ impl Bpt {
             }
         }
         l
-    }
-}
-
-impl Integrator for Bpt {
-    fn name(&self) -> &'static str {
-        "bpt"
-    }
-    fn splats_per_sample(&self) -> u64 {
-        1
-    }
-    fn prepares_iterations(&self) -> bool {
-        true
-    }
-    fn prepare_iteration(&self, scene: &Scene, seed: u64, index: u64, into: &mut Iteration) {
-        let pixels = scene.settings.width * scene.settings.height;
-        into.light_paths.trace(scene, pixels, seed, index, self.max_depth(scene));
-    }
-    fn describe(&self) -> String {
-        let mut d = format!("bpt heuristic={}", format!("{:?}", self.heuristic).to_lowercase());
-        if self.only != Recorded::All {
-            d += &format!(" only={:?}", self.only);
-        }
-        if let Some(m) = self.max_depth {
-            d += &format!(" max_depth={m}");
-        }
-        d
-    }
-    fn new_scratch(&self) -> Scratch {
-        Scratch::new(PixelScratch::default())
-    }
-    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
-        let mut joins = |paths: &PixelPaths, t: usize, _: &mut Rng| self.own_path_joins(scene, paths, t);
-        let buffers = cx.scratch.get::<PixelScratch>();
-        self.sample_pixel(scene, (x, y), rng, cx.iteration, buffers, cx.tile, &mut joins);
     }
 }

@@ -3,8 +3,12 @@
 //! dictionary). The command line, a scene's `<integrator>` properties, `--help` and the
 //! tests all read it, so adding an estimator here is all it takes to offer it everywhere.
 
-use super::params::{ParamError, ParamSpec, Params};
-use super::{bpt, ibpt, icbpt, lt, pt, skelbpt, skelpt, Integrator};
+use super::resampling::{IcBpt, SkeletonBpt, ICBPT_PARAMS, SKELBPT_PARAMS};
+use super::{bpt, ibpt, lt, pt, skelpt};
+use crate::integrator::params::{self, ParamError, ParamSpec, Params};
+use crate::integrator::Integrator;
+use crate::paths::bidir::{PixelSampler, Recorded};
+use crate::paths::mis::Heuristic;
 
 /// One estimator as the registry offers it.
 pub struct Estimator {
@@ -44,10 +48,10 @@ pub static ESTIMATORS: &[Estimator] = &[
         name: "bpt",
         aliases: &["bdpt"],
         doc: "bidirectional path tracing, every (s, t) strategy, exact MIS",
-        params: &[super::params::MIS_HEURISTIC],
+        params: &[params::MIS_HEURISTIC],
         create: |p| {
-            let heuristic = super::mis::Heuristic::parse(p.choice("heuristic")).unwrap_or_default();
-            Box::new(bpt::Bpt { max_depth: None, heuristic, only: bpt::Recorded::All })
+            let heuristic = Heuristic::parse(p.choice("heuristic")).unwrap_or_default();
+            Box::new(bpt::Bpt { sampler: PixelSampler { max_depth: None, heuristic, only: Recorded::All } })
         },
     },
     Estimator {
@@ -69,16 +73,16 @@ pub static ESTIMATORS: &[Estimator] = &[
         aliases: &[],
         doc:
             "bpt whose connections resample light vertices with distributions cached at skeleton nodes (thesis ch. 11)",
-        params: skelbpt::PARAMS,
-        create: |p| Box::new(skelbpt::SkeletonBpt::from_params(p)),
+        params: SKELBPT_PARAMS,
+        create: |p| Box::new(SkeletonBpt::from_params(p)),
     },
     Estimator {
         name: "icbpt",
         aliases: &[],
         doc: "bpt whose connections resample light vertices with distributions cached at importance records \
               (Georgiev et al. 2012 adapted to bpt, thesis section 11.5)",
-        params: icbpt::PARAMS,
-        create: |p| Box::new(icbpt::IcBpt::from_params(p)),
+        params: ICBPT_PARAMS,
+        create: |p| Box::new(IcBpt::from_params(p)),
     },
 ];
 
@@ -139,8 +143,13 @@ pub fn params_for_scene(
 pub fn parse_spec(spec: &str) -> Result<(String, Vec<(String, String)>), ParamError> {
     let mut parts = spec.split(':');
     let name = parts.next().unwrap_or_default().trim().to_string();
-    let params = parts.map(super::params::parse_assignment).collect::<Result<Vec<_>, _>>()?;
+    let params = parts.map(params::parse_assignment).collect::<Result<Vec<_>, _>>()?;
     Ok((name, params))
+}
+
+/// Builds an estimator by name with its default parameters.
+pub fn by_name(name: &str) -> Option<Box<dyn Integrator>> {
+    create(name, &[]).ok()
 }
 
 /// Every estimator's name.

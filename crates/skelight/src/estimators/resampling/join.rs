@@ -3,17 +3,18 @@
 //! (per-distribution images, thesis Fig. 106), the parameters they both take, and their
 //! build report.
 
-use super::bpt::{Bpt, PixelPaths, PixelScratch};
-use super::mis::{AllStrategies, Heuristic};
-use super::mutation::{factor, Strategy};
-use super::params::{ParamKind, ParamSpec, Params};
-use super::strategies;
-use super::vertex::{Vertex, VertexKind};
-use super::Iteration;
+use super::candidates::{Candidates, Draw, Table};
+use super::node_tables::{BuildStats, Origin};
 use crate::color::Rgb;
 use crate::film::FilmTile;
-use crate::guided::candidates::{Candidates, Draw, Table};
-use crate::guided::resampling::{BuildStats, Origin};
+use crate::integrator::diagnostics::{DebugPart, DebugParts};
+use crate::integrator::params::{ParamKind, ParamSpec, Params};
+use crate::integrator::{Integrator, Iteration};
+use crate::paths::bidir::{PixelPaths, PixelSampler, PixelScratch};
+use crate::paths::mis::{AllStrategies, Heuristic};
+use crate::paths::mutation::{factor, Strategy};
+use crate::paths::strategies;
+use crate::paths::vertex::{Vertex, VertexKind};
 use crate::sampling::Rng;
 use crate::scene::Scene;
 
@@ -136,7 +137,7 @@ pub fn joinable<'a>(scene: &Scene, paths: &PixelPaths<'a>, t: usize) -> Option<&
 /// path length allows, each drawn by `draw(s, rng)` and recorded as `only` says.
 #[allow(clippy::too_many_arguments)]
 pub fn joins_at(
-    bpt: &Bpt,
+    bpt: &PixelSampler,
     scene: &Scene,
     pool: &Candidates,
     paths: &PixelPaths,
@@ -160,11 +161,11 @@ pub fn joins_at(
     l
 }
 
-/// One pixel sample of `bpt` whose joins s, t ≥ 2 are `joins` when the iteration has
+/// One pixel sample of the bidirectional sampler whose joins s, t ≥ 2 are `joins` when the iteration has
 /// resampling tables, and the pixel's own light sub-path's (plain `bpt`) otherwise.
 #[allow(clippy::too_many_arguments)]
 pub fn sample_pixel(
-    bpt: &Bpt,
+    bpt: &PixelSampler,
     scene: &Scene,
     xy: (usize, usize),
     rng: &mut Rng,
@@ -174,10 +175,10 @@ pub fn sample_pixel(
     joins: Option<impl FnMut(&PixelPaths, usize, &mut Rng) -> Rgb>,
 ) {
     match joins {
-        Some(mut joins) => bpt.sample_pixel(scene, xy, rng, it, buffers, tile, &mut joins),
+        Some(mut joins) => bpt.sample_pixel(scene, xy, rng, &it.light_paths, buffers, tile, &mut joins),
         None => {
             let mut own = |paths: &PixelPaths, t: usize, _: &mut Rng| bpt.own_path_joins(scene, paths, t);
-            bpt.sample_pixel(scene, xy, rng, it, buffers, tile, &mut own)
+            bpt.sample_pixel(scene, xy, rng, &it.light_paths, buffers, tile, &mut own)
         }
     }
 }
@@ -230,4 +231,20 @@ impl BuildLog {
         let (stats, bytes) = self.get();
         build_report(&stats, bytes, places)
     }
+}
+
+/// The per-distribution parts of a resampling estimator (thesis Fig. 106): the estimator
+/// `make` builds from `params` with `only` set to each distribution, and to the strategies
+/// not resampled; the parts add up to the full image.
+pub fn distribution_parts(
+    params: &Params,
+    make: fn(&Params) -> Box<dyn Integrator>,
+) -> Result<Option<DebugParts>, String> {
+    let mut parts = Vec::new();
+    for only in ["V", "U", "C", "fallback", "unresampled"] {
+        let mut p = params.clone();
+        p.set("only", only).map_err(|e| e.to_string())?;
+        parts.push(DebugPart { stem: only.into(), columns: only.into(), estimator: make(&p) });
+    }
+    Ok(Some(DebugParts { table: ("distributions.csv", "part"), parts }))
 }

@@ -1,20 +1,19 @@
-//! `pt`: unidirectional path tracing with next-event estimation, multiple importance
-//! sampling against BSDF sampling (power heuristic) and Russian roulette. Path lengths
-//! follow Mitsuba: `max_depth` counts segments, so 2 means direct lighting only.
-//!
-//! The loop ([`trace`]) also serves guided path tracers: a [`DirectionGuide`] may offer, at
-//! each vertex, a second distribution of directions that is mixed with BSDF sampling
-//! (one-sample MIS with the balance heuristic, thesis eq. 168–169: the direction is drawn
-//! from the mixture and weighted by the mixture's density). Light sampling and emitter hits
-//! are then weighted against that mixture density, so the estimator stays unbiased whatever
-//! the guide proposes, as long as its density is exact.
+//! The path-tracing walk (next-event estimation, MIS against BSDF sampling with the power
+//! heuristic, Russian roulette), with a hook for guided path tracers: a [`DirectionGuide`]
+//! may offer, at each vertex, a second distribution of directions that is mixed with BSDF
+//! sampling (one-sample MIS with the balance heuristic, thesis eq. 168–169: the direction is
+//! drawn from the mixture and weighted by the mixture's density). Light sampling and emitter
+//! hits are then weighted against that mixture density, so the estimator stays unbiased
+//! whatever the guide proposes, as long as its density is exact. `pt` is the walk with
+//! [`Unguided`]; `skelpt` offers the skeleton's lobes (and `portalpt`, `ppg` after it theirs).
+//! Path lengths follow Mitsuba: `max_depth` counts segments, so 2 means direct lighting only.
 
 use super::mutation::{factor, Strategy};
-use super::{Integrator, SampleContext};
+use super::visibility::light_visible;
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::material::{Bsdf, BsdfCtx, BsdfModel, TransportMode};
-use crate::math::{vec2, Vec3};
+use crate::math::Vec3;
 use crate::sampling::{power_heuristic, power_heuristic_over_pdf, Rng};
 use crate::scene::{Scene, SurfaceInteraction};
 
@@ -186,19 +185,6 @@ fn hit_factor(guided: bool) -> f32 {
     }
 }
 
-#[derive(Clone, Debug, Default)]
-pub struct PathTracer {
-    /// Overrides the scene's `max_depth` when set.
-    pub max_depth: Option<i32>,
-}
-
-impl PathTracer {
-    /// Radiance arriving along `ray`.
-    pub fn li(&self, scene: &Scene, ray: Ray, rng: &mut Rng) -> Rgb {
-        trace(scene, self.max_depth.unwrap_or(scene.settings.max_depth), ray, rng, &Unguided, None)
-    }
-}
-
 /// Radiance arriving along `ray` by paths of at most `max_depth` segments, with directions
 /// drawn from BSDF sampling mixed with `guide`'s distribution where it offers one. With
 /// `steps`, every non-delta direction drawn at a guided vertex is recorded there.
@@ -265,17 +251,15 @@ pub fn trace<G: DirectionGuide>(
                 if !ls.radiance.is_black() && ls.pdf > 0.0 {
                     let wo = si.frame.to_local(ls.wi);
                     let f = bsdf.eval(&ctx, wi, wo);
-                    if !f.is_black() {
-                        let shadow = if ls.dist.is_finite() { si.spawn_ray_to(ls.p) } else { si.spawn_ray(ls.wi) };
-                        if !scene.occluded(&shadow) {
-                            let pdf = pmf * ls.pdf;
-                            let scale = if ls.delta {
-                                1.0 / pdf
-                            } else {
-                                power_heuristic_over_pdf(pdf, mixture_pdf(here.as_ref(), bsdf.pdf(&ctx, wi, wo), ls.wi))
-                            };
-                            l += beta * f * ls.radiance * (scale * factor(Strategy::Nee));
-                        }
+                    let towards = ls.dist.is_finite().then_some(ls.p);
+                    if !f.is_black() && light_visible(scene, &si, towards, ls.wi) {
+                        let pdf = pmf * ls.pdf;
+                        let scale = if ls.delta {
+                            1.0 / pdf
+                        } else {
+                            power_heuristic_over_pdf(pdf, mixture_pdf(here.as_ref(), bsdf.pdf(&ctx, wi, wo), ls.wi))
+                        };
+                        l += beta * f * ls.radiance * (scale * factor(Strategy::Nee));
                     }
                 }
             }
@@ -318,19 +302,6 @@ pub fn trace<G: DirectionGuide>(
     l
 }
 
-impl Integrator for PathTracer {
-    fn name(&self) -> &'static str {
-        "pt"
-    }
-    fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
-        let tile = &mut *cx.tile;
-        let pos = vec2(x as f32, y as f32) + rng.next_2d();
-        let ray = scene.camera.generate_ray(pos, rng.next_2d());
-        let l = self.li(scene, ray, rng);
-        tile.add(pos, l);
-    }
-}
-
 #[cfg(test)]
 mod tests {
     //! The mixture of guide and BSDF sampling must estimate ∫ f·|cos|·g dω for any g
@@ -338,9 +309,9 @@ mod tests {
     //! fixed direction, on a diffuse BSDF (analytic answer) and on smooth plastic (a delta
     //! lobe beside a diffuse one: the unguided estimate is the reference).
     use super::*;
-    use crate::guided::directions::{lobe_pdf, sample_lobe};
     use crate::material::{Diffuse, Plastic};
     use crate::math::{vec2, vec3, Frame};
+    use crate::sampling::{power_cosine, power_cosine_pdf};
     use crate::texture::Texture;
 
     struct Lobe {
@@ -353,10 +324,10 @@ mod tests {
             self.c
         }
         fn pdf(&self, wo: Vec3) -> f32 {
-            lobe_pdf(self.strength, self.axis.dot(wo))
+            power_cosine_pdf(self.axis.dot(wo), self.strength)
         }
         fn sample(&self, rng: &mut Rng) -> Vec3 {
-            sample_lobe(self.strength, self.axis, rng.next_2d())
+            Frame::from_normal(self.axis).to_world(power_cosine(rng.next_2d(), self.strength))
         }
     }
 

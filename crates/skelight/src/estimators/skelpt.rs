@@ -15,15 +15,15 @@
 
 use std::sync::Arc;
 
-use super::params::{ParamKind, ParamSpec, Params};
-use super::pt::{trace, DirectionGuide, GuidedStep, GuidedVertex};
-use super::{Integrator, Preparation, PrepareError, SampleContext, Scratch};
-use crate::guided::analysis::prepare_guide;
 use crate::guided::directions::{mixture_pdf, mixture_pdfs, sample_mixture, Directions, Target};
-use crate::guided::importance::{importance_nodes, incident_power};
-use crate::guided::{GuideSettings, SkeletonGuide};
+use crate::guided::pictures::{guidance_pictures, ImportanceFile};
+use crate::guided::{Guidance, GuidanceSettings, SkeletonGuide};
+use crate::integrator::diagnostics::DebugFile;
+use crate::integrator::params::{ParamKind, ParamSpec, Params};
+use crate::integrator::{Integrator, Preparation, PrepareError, SampleContext, Scratch};
 use crate::material::{Bsdf, BsdfModel};
 use crate::math::{vec2, Vec3};
+use crate::paths::walk::{trace, DirectionGuide, GuidedStep, GuidedVertex};
 use crate::sampling::Rng;
 use crate::scene::{Scene, SurfaceInteraction};
 
@@ -42,7 +42,7 @@ pub const PARAMS: &[ParamSpec] = &[
         doc: "probability of drawing a direction from the skeleton rather than the BSDF (eq. 168); 0 is pt; \
               below 1, or directions no lobe reaches and delta lobes would never be drawn (a bias)",
     },
-    super::params::SKELETON_RESOLUTION,
+    crate::integrator::params::SKELETON_RESOLUTION,
     ParamSpec {
         name: "importance_rays",
         kind: ParamKind::Int { min: 1, max: 1 << 28 },
@@ -109,17 +109,10 @@ struct Learning {
     steps: Vec<GuidedStep>,
 }
 
-/// Seed of the importance estimate's random stream (fixed: the preparation is part of the
-/// estimator, the same for every render seed).
-const IMPORTANCE_SEED: u64 = 0x5ce1_e70f;
-
 pub struct SkeletonPathTracer {
     pub strength: f32,
     pub c_skel: f32,
-    pub resolution: usize,
-    pub importance_rays: usize,
-    pub importance_bounces: u32,
-    pub importance_nodes: usize,
+    pub settings: GuidanceSettings,
     pub adaptive: bool,
     /// Made by [`Integrator::prepare`].
     prepared: Option<Prepared>,
@@ -142,29 +135,10 @@ impl SkeletonPathTracer {
         SkeletonPathTracer {
             strength: p.float("strength") as f32,
             c_skel: p.float("c_skel") as f32,
-            resolution: p.int("resolution") as usize,
-            importance_rays: p.int("importance_rays") as usize,
-            importance_bounces: p.int("importance_bounces") as u32,
-            importance_nodes: p.int("importance_nodes") as usize,
+            settings: GuidanceSettings::from_params(p),
             adaptive: p.bool("adaptive"),
             prepared: None,
         }
-    }
-
-    /// The skeleton data sampling reads (after [`Integrator::prepare`]).
-    pub fn guide(&self) -> Option<(&SkeletonGuide, &Directions)> {
-        self.prepared.as_ref().map(|p| (&*p.guide, &p.directions))
-    }
-
-    /// The importance nodes and their values, brightest first (after a prepare that found
-    /// any).
-    pub fn importance(&self) -> &[(u32, f64)] {
-        self.prepared.as_ref().map_or(&[], |p| &p.importance)
-    }
-
-    /// Per node, the strength and c_skel the next pass uses (the adaptive mode's choices).
-    pub fn node_params(&self) -> &[(f32, f32)] {
-        self.prepared.as_ref().map_or(&[], |p| &p.node_params)
     }
 }
 
@@ -243,10 +217,10 @@ impl Integrator for SkeletonPathTracer {
             "skelpt strength={} c_skel={} resolution={} importance_rays={} importance_bounces={} importance_nodes={} adaptive={}",
             self.strength,
             self.c_skel,
-            self.resolution,
-            self.importance_rays,
-            self.importance_bounces,
-            self.importance_nodes,
+            self.settings.resolution,
+            self.settings.importance_rays,
+            self.settings.importance_bounces,
+            self.settings.importance_nodes,
             self.adaptive
         )
     }
@@ -262,27 +236,10 @@ impl Integrator for SkeletonPathTracer {
             prep.notes.push("the scene has no lights: plain path tracing".into());
             return Ok(prep);
         }
-        let guide = prepare_guide(scene, &GuideSettings { resolution: self.resolution }, &mut prep)?;
-        let lap = std::time::Instant::now();
-        let values = incident_power(scene, &guide, self.importance_rays, self.importance_bounces, IMPORTANCE_SEED);
-        let importance = importance_nodes(&values, self.importance_nodes);
-        prep.stages.push(("importance from light rays (eq. 176)".into(), lap.elapsed().as_secs_f64()));
-        let lap = std::time::Instant::now();
-        let directions = Directions::build(scene, &guide, &importance);
-        prep.stages.push(("shortest paths and importance points (eq. 162–165)".into(), lap.elapsed().as_secs_f64()));
-        let lit = values.iter().filter(|v| **v > 0.0).count();
-        prep.notes.push(format!(
-            "skeleton: {} nodes, {} edges; {lit} lit, {} importance nodes; {} targets; {:.1} MB kept for sampling",
-            guide.graph.nodes.len(),
-            guide.graph.edges.len(),
-            importance.len(),
-            directions.len(),
-            (guide.bytes + directions.bytes()) as f64 / 1e6
-        ));
-        if importance.is_empty() {
-            prep.notes.push("no light ray reached a skeleton node: plain path tracing".into());
+        let Some(Guidance { guide, directions, importance }) = Guidance::prepare(scene, &self.settings, &mut prep)?
+        else {
             return Ok(prep);
-        }
+        };
         let nodes = guide.graph.nodes.len();
         self.prepared = Some(Prepared {
             guide,
@@ -325,9 +282,21 @@ impl Integrator for SkeletonPathTracer {
                     trace(scene, max_depth, ray, rng, &g, None)
                 }
             }
-            None => trace(scene, max_depth, ray, rng, &super::pt::Unguided, None),
+            None => trace(scene, max_depth, ray, rng, &crate::paths::walk::Unguided, None),
         };
         cx.tile.add(pos, l);
+    }
+
+    /// The guidance pictures (`importance_view.png`, `node_per_pixel.png`) and
+    /// `importance.json`.
+    fn debug_files(&self, scene: &Scene) -> Vec<DebugFile> {
+        let Some(p) = &self.prepared else { return Vec::new() };
+        let (pictures, nodes) = guidance_pictures(scene, &p.guide, &p.directions, &p.importance);
+        let mut files: Vec<DebugFile> =
+            pictures.into_iter().map(|(name, image)| DebugFile::Png { name: name.into(), image }).collect();
+        let text = serde_json::to_string_pretty(&ImportanceFile { importance_nodes: nodes }).unwrap_or_default() + "\n";
+        files.push(DebugFile::Text { name: "importance.json".into(), text });
+        files
     }
 
     fn learns_across_passes(&self) -> bool {

@@ -5,8 +5,8 @@
 use super::mis::{self, Heuristic, Junction, PathWeight, StrategySet, SubPath};
 use super::mutation::{factor, Strategy};
 use super::vertex::{Joined, LensHit, Vertex, VertexKind};
+use super::visibility::{light_visible, visible, visible_from_near_plane};
 use crate::color::Rgb;
-use crate::geometry::{offset_origin, Ray};
 use crate::material::TransportMode;
 use crate::math::{Vec2, Vec3};
 use crate::sampling::Rng;
@@ -19,38 +19,15 @@ pub struct Weighting<'a> {
     pub strategies: StrategySet<'a>,
 }
 
+/// Light tracing's strategies: those that end on the camera (t ≤ 1).
+pub fn camera_end_strategies(_s: usize, t: usize) -> bool {
+    t <= 1
+}
+
 impl PathWeight for Weighting<'_> {
     fn weight_joined(&self, scene: &Scene, light: SubPath, camera: SubPath, junction: &Junction) -> f32 {
         mis::weight(scene, light, camera, junction, self.heuristic, self.strategies)
     }
-}
-
-/// Where a shadow ray towards `to` leaves vertex `v`: off its surface, or off an emitter's or
-/// the lens's plane, or from the point itself (point lights).
-fn shadow_origin(v: &Vertex, to: Vec3) -> Vec3 {
-    if v.kind == VertexKind::Surface {
-        v.si.spawn_ray_to(to).o
-    } else if v.n().length_squared() > 0.0 {
-        offset_origin(v.p(), v.n(), to - v.p())
-    } else {
-        v.p()
-    }
-}
-
-/// Shadow ray between two vertices (either may be a point light or the lens).
-pub fn visible(scene: &Scene, a: &Vertex, b: &Vertex) -> bool {
-    let o = shadow_origin(a, b.p());
-    let q = shadow_origin(b, o);
-    !scene.occluded(&Ray { o, d: q - o, tmax: 1.0 - 1e-4 })
-}
-
-/// Shadow ray from the point where a connection to the lens crosses the near plane to light
-/// vertex `y`: cast from the plane itself (not offset), so that the margin that keeps a
-/// shadow ray off its own surfaces falls at `y`'s end and occluders just beyond the plane
-/// block it, as they block camera rays starting there.
-fn visible_from_near_plane(scene: &Scene, near_point: Vec3, y: &Vertex) -> bool {
-    let q = shadow_origin(y, near_point);
-    !scene.occluded(&Ray { o: near_point, d: q - near_point, tmax: 1.0 - 1e-4 })
 }
 
 /// s = 0: the camera sub-path's last vertex `camera[t − 1]` is on an emitter, or the path
@@ -112,8 +89,7 @@ pub fn connect_to_light(scene: &Scene, camera: &[Vertex], t: usize, rng: &mut Rn
     if jz.f.is_black() {
         return Rgb::BLACK;
     }
-    let shadow = if infinite { z.si.spawn_ray(ls.wi) } else { z.si.spawn_ray_to(ls.p) };
-    if scene.occluded(&shadow) {
+    if !light_visible(scene, &z.si, (!infinite).then_some(ls.p), ls.wi) {
         return Rgb::BLACK;
     }
     let camera_end = z.end_densities(scene, &jz, &camera[t - 2], &lv);
