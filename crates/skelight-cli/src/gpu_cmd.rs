@@ -18,20 +18,11 @@ pub(crate) fn check_estimator(integrator: &str, params: &[(String, String)]) -> 
 /// here (skelight_gpu::job::run; the adapter is named on stderr).
 #[cfg(feature = "gpu")]
 pub(crate) fn job_renderer(job: &crate::render_cmd::Job) -> Result<Box<skelight::job::Render>> {
-    if job.device == skelight::job::Device::Cpu {
-        return Ok(Box::new(|job, scene, resume, on_pass| job.run(scene, resume, on_pass)));
+    let (render, line) = skelight_gpu::job::renderer_for(job, &job.scene).context("--device gpu")?;
+    if let Some(line) = line {
+        eprintln!("{line}");
     }
-    let estimator = skelight_gpu::job::estimator_for(job.integrator.name(), &[]).context("--device gpu")?;
-    let setup = std::time::Instant::now();
-    let mut gpu = skelight_gpu::GpuRenderer::new(&job.scene, estimator)?;
-    eprintln!(
-        "GPU {}: {} (splats by {:?}; set up in {:.2} s, before the render's time)",
-        estimator.name(),
-        gpu.adapter,
-        gpu.splat_mode,
-        setup.elapsed().as_secs_f64()
-    );
-    Ok(Box::new(move |job, scene, resume, on_pass| skelight_gpu::job::run(&mut gpu, scene, job, resume, on_pass)))
+    Ok(render)
 }
 
 /// `bench render --device gpu`: samples/s and rays/s after one warm-up sample (shader

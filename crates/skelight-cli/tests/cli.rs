@@ -102,14 +102,21 @@ fn bpt_strategy_images_add_up_to_the_render() {
     }
     let dbg = d.join("pt");
     let out = bin()
-        .args(["render", "-i", "pt", "--spp", "1", "--resolution", "8", "8", "--debug"])
+        .args(["render", "-i", "pt", "--spp", "1", "--resolution", "8", "8", "-o"])
+        .arg(d.join("pt.exr"))
+        .arg("--debug")
         .arg(&dbg)
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success() && err.contains("pt offers no --debug output"), "{err}");
-    let out =
-        bin().args(["render", "-i", "bpt", "--max-depth", "-1", "--spp", "1", "--debug"]).arg(&dbg).output().unwrap();
+    let out = bin()
+        .args(["render", "-i", "bpt", "--max-depth", "20", "--spp", "1", "--debug"])
+        .arg(&dbg)
+        .arg("-o")
+        .arg(d.join("b.exr"))
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("max depth from 1 to 16") && !err.contains("panicked"), "{err}");
 }

@@ -51,6 +51,34 @@ pub fn estimator_for(integrator: &str, params: &[(String, String)]) -> Result<Es
     Ok(estimator)
 }
 
+/// The one device switch: the renderer for `job` on `scene`, the CPU's estimator
+/// (`Job::run`) for a CPU job, and for a GPU job the GPU's kernels for the same registry
+/// estimator, opened here (with a line naming the adapter, the splat mode and the set-up
+/// time, which is not counted in the render's). The CLI's `render` and `reference`, Python's
+/// `render` (and through it Dask) and `compare`'s `gpu:NAME` all pick their renderer here.
+pub fn renderer_for(job: &Job, scene: &Scene) -> Result<(Box<skelight::job::Render>, Option<String>), JobError> {
+    if job.device == Device::Cpu {
+        return Ok((Box::new(|job, scene, resume, on_pass| job.run(scene, resume, on_pass)), None));
+    }
+    let estimator = estimator_for(job.integrator.name(), &[])?;
+    let setup = std::time::Instant::now();
+    let mut gpu = GpuRenderer::new(scene, estimator)?;
+    let line = format!(
+        "GPU {}: {} (splats by {:?}; set up in {:.2} s, before the render's time)",
+        estimator.name(),
+        gpu.adapter,
+        gpu.splat_mode,
+        setup.elapsed().as_secs_f64()
+    );
+    let render = move |job: &mut Job,
+                       scene: &Scene,
+                       resume,
+                       on_pass: &mut dyn FnMut(&Progress, &Film) -> Result<(), JobError>| {
+        run(&mut gpu, scene, job, resume, on_pass)
+    };
+    Ok((Box::new(render), Some(line)))
+}
+
 /// Renders `job` (a GPU job: `JobSpec::device`) on `gpu` (bound to `scene` and the job's
 /// estimator): sample indices 0..spp, the shard's slice of them, or, under a time budget,
 /// from 0 until the budget is spent (at most `spp` when given too), from `resume`'s film and
@@ -160,15 +188,16 @@ impl External for CompareOnGpu {
             device: Device::Gpu,
             ..Default::default()
         };
-        let job = Job::new(scene, name, &job_spec)?;
-        let mut gpu = GpuRenderer::new(scene, estimator)?;
-        let r = run(&mut gpu, scene, &job, None, |p, film| {
+        let mut job = Job::new(scene, name, &job_spec)?;
+        let (mut render, _) = renderer_for(&job, scene)?;
+        let mut on_pass = |p: &Progress, film: &Film| {
             if on_pass(p, film) {
                 Ok(())
             } else {
                 Err(JobError::Stopped("stopped".into()))
             }
-        })?;
+        };
+        let r = render(&mut job, scene, None, &mut on_pass)?;
         Ok(RenderResult { spp: r.spp(), film: r.film, elapsed: r.elapsed, preparation: r.preparation })
     }
 }

@@ -269,14 +269,11 @@ pub fn render(
                 })
             })
         };
-        let rendered = match on_gpu {
-            // On the GPU (skelight_gpu::job): the same job, its shard's samples or time budget.
-            Some(estimator) => {
-                let mut gpu = skelight_gpu::GpuRenderer::new(&scene, estimator)?;
-                skelight_gpu::job::run(&mut gpu, &scene, &job, None, on_pass)?
-            }
-            None => job.run(&scene, None, on_pass)?,
-        };
+        // The CPU's estimator or, for device = "gpu", the GPU's kernels (the same job, its
+        // shard's samples or time budget).
+        let (mut renderer, _) = skelight_gpu::job::renderer_for(&job, &scene)?;
+        let mut on_pass = on_pass;
+        let rendered = renderer(&mut job, &scene, None, &mut on_pass)?;
         if let Some(dir) = &debug {
             skelight::debug::write_files(job.integrator.as_ref(), &scene, dir)?;
         }
