@@ -6,8 +6,9 @@
 use anyhow::Context;
 use anyhow::{bail, Result};
 
-/// Refuses, before the scene loads, an estimator the GPU does not render (pt, ibpt and lt
-/// only) or parameters, which they do not take there.
+/// Refuses, before the scene loads, an estimator the GPU does not render
+/// (skelight_gpu::Estimator::ALL) or a parameter its kernels do not take
+/// (skelight_gpu::job::estimator_for).
 #[cfg(feature = "gpu")]
 pub(crate) fn check_estimator(integrator: &str, params: &[(String, String)]) -> Result<()> {
     skelight_gpu::job::estimator_for(integrator, params).context("--device gpu")?;
@@ -29,7 +30,8 @@ pub(crate) fn job_renderer(job: &crate::render_cmd::Job) -> Result<Box<skelight:
 /// compilation and first dispatches), and what the renderer keeps on the device.
 #[cfg(feature = "gpu")]
 pub(crate) fn bench(path: &std::path::Path, scene: &skelight::scene::Scene, name: &str, spp: u32) -> Result<()> {
-    let estimator = skelight_gpu::job::estimator_for(name, &[]).context("--device gpu")?;
+    let (name, params) = skelight::estimators::parse_spec(name)?;
+    let estimator = skelight_gpu::job::estimator_for(&name, &params).context("--device gpu")?;
     let name = estimator.name();
     if spp == 0 {
         bail!("--spp must be at least 1");
@@ -217,7 +219,7 @@ pub(crate) fn job_renderer(job: &crate::render_cmd::Job) -> Result<Box<skelight:
     if job.device != skelight::job::Device::Cpu {
         bail!("this skelight was built without the GPU: cargo build --release -p skelight-cli --features gpu");
     }
-    Ok(Box::new(|job, scene, resume, on_pass| job.run(scene, resume, on_pass)))
+    Ok(skelight::job::cpu_renderer())
 }
 
 #[cfg(not(feature = "gpu"))]

@@ -174,8 +174,8 @@ struct ReferenceArgs {
     checkpoint_every: Duration,
     /// Where to render: cpu, or gpu (pt, ibpt or lt; a build with `--features gpu`). A
     /// checkpoint resumes only on the device that wrote it.
-    #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
-    device: String,
+    #[arg(long, default_value = "cpu", value_parser = crate::parse_device)]
+    device: skelight::job::Device,
     #[command(flatten)]
     setup: SceneSetup,
     #[arg(short = 'D', value_parser = parse_define)]
@@ -198,8 +198,8 @@ enum BenchKind {
         #[arg(long, default_value_t = 5)]
         rounds: usize,
         /// cpu (the CPU's accelerators), or gpu (the GPU kernels' traversal alone).
-        #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
-        device: String,
+        #[arg(long, default_value = "cpu", value_parser = crate::parse_device)]
+        device: skelight::job::Device,
     },
     /// Time per stage and peak memory of the empty-space analysis (best of --runs).
     Skeleton {
@@ -228,8 +228,8 @@ enum BenchKind {
         #[arg(long, default_value_t = 16)]
         spp: u32,
         /// cpu, or gpu (pt, ibpt or lt; reports rays/s and device memory too).
-        #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
-        device: String,
+        #[arg(long, default_value = "cpu", value_parser = crate::parse_device)]
+        device: skelight::job::Device,
         #[command(flatten)]
         setup: SceneSetup,
     },
@@ -353,7 +353,7 @@ fn bench(what: BenchKind) -> Result<()> {
         }
         BenchKind::Rays { scenes, rays, threads, rounds, device } => {
             rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().ok();
-            if device == "gpu" {
+            if device == skelight::job::Device::Gpu {
                 return gpu_cmd::bench_rays(&scenes, rays, rounds);
             }
             println!(
@@ -399,7 +399,7 @@ fn bench(what: BenchKind) -> Result<()> {
         BenchKind::Render { scene: path, integrator: name, spp, device, setup } => {
             let mut scene = load_scene(Some(&path), &[])?;
             setup.apply(&mut scene)?;
-            if device == "gpu" {
+            if device == skelight::job::Device::Gpu {
                 return gpu_cmd::bench(&path, &scene, &name, spp);
             }
             let (estimator, params) = registry::parse_spec(&name)?;
@@ -424,6 +424,11 @@ fn bench(what: BenchKind) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// `--device`: cpu or gpu (skelight::job::Device, as Python's `device =` parses it too).
+pub(crate) fn parse_device(s: &str) -> Result<skelight::job::Device, String> {
+    s.parse().map_err(|e: skelight::job::JobError| e.to_string())
 }
 
 /// Durations as `300` (seconds), `90s`, `5m`, `2h` or `1.5h`.
@@ -454,7 +459,7 @@ pub(crate) fn write_text(path: &Path, text: &str) -> Result<()> {
 
 /// Long render that checkpoints to OUT.exr.ckpt and resumes from it after an interruption.
 fn reference(args: ReferenceArgs) -> Result<()> {
-    let device = if args.device == "gpu" { skelight::job::Device::Gpu } else { skelight::job::Device::Cpu };
+    let device = args.device;
     if device == skelight::job::Device::Gpu {
         gpu_cmd::check_estimator(&args.integrator, &args.params)?;
     }

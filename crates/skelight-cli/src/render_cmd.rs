@@ -70,8 +70,8 @@ pub(crate) struct RenderArgs {
     pub(crate) shard: Option<Shard>,
     /// Where to render: cpu, or gpu (pt, ibpt or lt, on the first Vulkan adapter: a GPU, or
     /// lavapipe; needs a build with `--features gpu` and a scene inside the GPU's subset).
-    #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
-    pub(crate) device: String,
+    #[arg(long, default_value = "cpu", value_parser = crate::parse_device)]
+    pub(crate) device: skelight::job::Device,
 }
 
 fn parse_shard(s: &str) -> Result<Shard, String> {
@@ -238,15 +238,12 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
     if let Some(h) = args.heuristic {
         params.push(("heuristic".into(), format!("{h:?}").to_lowercase()));
     }
-    let device = if args.device == "gpu" { skelight::job::Device::Gpu } else { skelight::job::Device::Cpu };
+    let device = args.device;
     if device == skelight::job::Device::Gpu {
         crate::gpu_cmd::check_estimator(&args.integrator, &params)?;
-        if args.debug.is_some() {
-            bail!("--device gpu writes no --debug pictures (they belong to the CPU estimators)");
-        }
     }
-    if args.shard.is_some() && args.debug.is_some() {
-        bail!("--shard renders a slice of the samples; render the --debug pictures without it");
+    if args.debug.is_some() {
+        skelight::debug::check_request(device, args.shard.is_some()).context("--debug")?;
     }
     let spec = JobSpec {
         integrator: args.integrator.clone(),

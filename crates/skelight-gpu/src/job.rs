@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 use skelight::compare::External;
 use skelight::estimators::registry;
 use skelight::film::Film;
+use skelight::integrator::params::Params;
 use skelight::integrator::{Preparation, Progress, RenderOptions, RenderResult};
 use skelight::job::{Device, Job, JobError, JobSpec, Rendered};
 use skelight::scene::Scene;
@@ -36,17 +37,30 @@ fn next_batch(at: u32, done: u32, elapsed: Duration, left: Option<Duration>) -> 
     (rate * left.min(BATCH_TIME).as_secs_f64()).clamp(1.0, u32::MAX as f64) as u32
 }
 
-/// The GPU's estimator for a registry name (pt, ibpt or lt, by any name the registry knows
-/// them by), refusing parameters, which the GPU's estimators do not take: the one check that
-/// `render`, `reference` and `compare` on the GPU and the Python package make.
+/// The GPU's estimator for a registry name and parameters: the registry parses them as it
+/// does for the CPU (an unknown estimator or parameter, a bad value: the CPU's errors), then
+/// [`kernels_for`]. The one check that `render`, `reference` and `compare` on the GPU make
+/// before the scene loads.
 pub fn estimator_for(integrator: &str, params: &[(String, String)]) -> Result<Estimator, JobError> {
-    let name = registry::find(integrator)?.name;
-    let estimator = Estimator::from_name(name)
-        .ok_or_else(|| JobError::Invalid(format!("the GPU renders pt, ibpt or lt, not {name}")))?;
-    if !params.is_empty() {
-        return Err(JobError::Invalid(
-            "the GPU takes no estimator parameters (pt, ibpt and lt have none there)".into(),
-        ));
+    let e = registry::find(integrator)?;
+    kernels_for(&Params::new(e.name, e.params, params)?)
+}
+
+/// The GPU's kernels for the registry estimator whose parsed parameters are `params` (a
+/// job's, the scene's `<integrator>` properties included), refusing an estimator the GPU
+/// does not have and a parameter set away from its default that its kernels do not honour.
+pub fn kernels_for(params: &Params) -> Result<Estimator, JobError> {
+    let name = params.estimator();
+    let estimator = Estimator::from_name(name).ok_or_else(|| {
+        let gpu = Estimator::ALL.map(|e| e.name()).join(", ");
+        JobError::Invalid(format!("the GPU renders {gpu}, not {name}"))
+    })?;
+    let refused: Vec<_> = params.changed().into_iter().filter(|p| !estimator.honours().contains(p)).collect();
+    if !refused.is_empty() {
+        return Err(JobError::Invalid(format!(
+            "{name} on the GPU does not take {} (its kernels use the defaults); render on the CPU for them",
+            refused.join(", ")
+        )));
     }
     Ok(estimator)
 }
@@ -58,9 +72,9 @@ pub fn estimator_for(integrator: &str, params: &[(String, String)]) -> Result<Es
 /// `render` (and through it Dask) and `compare`'s `gpu:NAME` all pick their renderer here.
 pub fn renderer_for(job: &Job, scene: &Scene) -> Result<(Box<skelight::job::Render>, Option<String>), JobError> {
     if job.device == Device::Cpu {
-        return Ok((Box::new(|job, scene, resume, on_pass| job.run(scene, resume, on_pass)), None));
+        return Ok((skelight::job::cpu_renderer(), None));
     }
-    let estimator = estimator_for(job.integrator.name(), &[])?;
+    let estimator = kernels_for(&job.params)?;
     let setup = std::time::Instant::now();
     let mut gpu = GpuRenderer::new(scene, estimator)?;
     let line = format!(
@@ -158,17 +172,26 @@ impl From<GpuError> for JobError {
 /// and is not counted.
 pub struct CompareOnGpu;
 
+/// A registry estimator's name and its `name=value` parameters.
+type NamedParams = (String, Vec<(String, String)>);
+
 impl CompareOnGpu {
-    fn estimator(name: &str) -> Option<Result<Estimator, JobError>> {
+    /// `gpu:NAME[:param=value…]` as the registry's name and parameters, checked for the GPU
+    /// with the scene's `<integrator>` properties as its render will read them.
+    fn spec(name: &str, scene: &Scene) -> Option<Result<NamedParams, JobError>> {
         let spec = name.strip_prefix("gpu:")?;
-        Some(registry::parse_spec(spec).map_err(JobError::from).and_then(|(e, params)| estimator_for(&e, &params)))
+        let checked = registry::parse_spec(spec).map_err(JobError::from).and_then(|(e, params)| {
+            let (_, parsed, _) = registry::params_for_scene(&e, &scene.settings, &params)?;
+            kernels_for(&parsed).map(|_| (e, params))
+        });
+        Some(checked)
     }
 }
 
 impl External for CompareOnGpu {
     fn check(&mut self, name: &str, scene: &Scene) -> Option<Result<(), JobError>> {
-        let estimator = CompareOnGpu::estimator(name)?;
-        Some(estimator.and_then(|_| Ok(GpuRenderer::check(scene)?)))
+        let spec = CompareOnGpu::spec(name, scene)?;
+        Some(spec.and_then(|_| Ok(GpuRenderer::check(scene)?)))
     }
 
     fn render(
@@ -178,10 +201,11 @@ impl External for CompareOnGpu {
         opts: &RenderOptions,
         on_pass: &mut dyn FnMut(&Progress, &Film) -> bool,
     ) -> Result<RenderResult, JobError> {
-        let estimator = CompareOnGpu::estimator(name)
+        let (integrator, params) = CompareOnGpu::spec(name, scene)
             .unwrap_or_else(|| Err(JobError::Invalid("not a GPU estimator (gpu:NAME)".into())))?;
         let job_spec = JobSpec {
-            integrator: estimator.name().into(),
+            integrator,
+            params,
             spp: opts.spp,
             time: opts.time,
             seed: opts.seed,
@@ -205,6 +229,29 @@ impl External for CompareOnGpu {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The GPU reads the registry's names and parameter specs: aliases resolve, the CPU's
+    /// errors for unknown parameters and bad values are the GPU's, an estimator it lacks is
+    /// refused by name, and a parameter its kernels do not honour is refused only when set
+    /// away from its default.
+    #[test]
+    fn the_gpu_parses_the_registrys_names_and_parameters() {
+        let pair = |k: &str, v: &str| vec![(k.to_string(), v.to_string())];
+        assert_eq!(estimator_for("path", &[]).unwrap(), Estimator::Pt);
+        assert_eq!(estimator_for("ptracer", &[]).unwrap(), Estimator::Lt);
+        let unknown = estimator_for("pt", &pair("rr_depth", "3")).unwrap_err().to_string();
+        assert!(unknown.contains("pt has no parameter 'rr_depth'"), "{unknown}");
+        let missing = estimator_for("bpt", &[]).unwrap_err().to_string();
+        assert_eq!(missing, "the GPU renders pt, ibpt, lt, not bpt");
+        assert!(estimator_for("bpt", &pair("heuristic", "nope")).unwrap_err().to_string().contains("heuristic"));
+        // A GPU estimator declaring a parameter its kernels do not read (as `vpl` will).
+        static SPECS: &[skelight::integrator::params::ParamSpec] = &[skelight::integrator::params::MIS_HEURISTIC];
+        let default = Params::new("ibpt", SPECS, &[]).unwrap();
+        assert_eq!(kernels_for(&default).unwrap(), Estimator::Ibpt);
+        let set = Params::new("ibpt", SPECS, &pair("heuristic", "power")).unwrap();
+        let refused = kernels_for(&set).unwrap_err().to_string();
+        assert!(refused.contains("ibpt on the GPU does not take heuristic"), "{refused}");
+    }
 
     #[test]
     fn batches_end_on_the_devices_groups_or_fill_the_time_left() {

@@ -56,21 +56,29 @@ pub enum Estimator {
 }
 
 impl Estimator {
-    /// The estimator of registry name `name`, if the GPU has it.
+    /// Every GPU estimator, each under its CPU twin's registry name.
+    pub const ALL: [Estimator; 3] = [Estimator::Pt, Estimator::Ibpt, Estimator::Lt];
+
+    /// The estimator of registry name `name` (its canonical name), if the GPU has it.
     pub fn from_name(name: &str) -> Option<Estimator> {
-        match name {
-            "pt" => Some(Estimator::Pt),
-            "ibpt" => Some(Estimator::Ibpt),
-            "lt" => Some(Estimator::Lt),
-            _ => None,
-        }
+        Estimator::ALL.into_iter().find(|e| e.name() == name)
     }
+
+    /// Its registry name.
     pub fn name(self) -> &'static str {
         match self {
             Estimator::Pt => "pt",
             Estimator::Ibpt => "ibpt",
             Estimator::Lt => "lt",
         }
+    }
+
+    /// The registry parameters its kernels honour; any other the registry declares for it
+    /// must keep its default on the GPU (skelight_gpu::job::kernels_for refuses it). pt, ibpt
+    /// and lt declare none today; an estimator that does (`vpl`) lists here those its
+    /// kernels read.
+    pub fn honours(self) -> &'static [&'static str] {
+        &[]
     }
 }
 

@@ -162,29 +162,21 @@ pub fn render_key(
     device: &str,
 ) -> PyResult<String> {
     let pairs = param_pairs(params)?;
-    let device = if gpu_estimator(device, integrator, &pairs)?.is_some() { Device::Gpu } else { Device::Cpu };
+    let device = parse_device(device)?;
     let shard = shard.map(|(k, n)| Shard::new(k, n)).transpose().map_err(error)?;
     let spec =
         JobSpec { integrator: integrator.to_string(), params: pairs, spp, seed, shard, device, ..Default::default() };
     let s = scene.read();
     let job = Job::new(&s, scene.label(), &spec).map_err(error)?;
+    if device == Device::Gpu {
+        skelight_gpu::job::kernels_for(&job.params).map_err(error)?;
+    }
     Ok(job.key(&s))
 }
 
-/// For `device = "gpu"`, the GPU's estimator (skelight_gpu::job::estimator_for: pt, ibpt or
-/// lt, without parameters); `None` for the CPU; an error for another device.
-fn gpu_estimator(
-    device: &str,
-    integrator: &str,
-    params: &[(String, String)],
-) -> PyResult<Option<skelight_gpu::Estimator>> {
-    match device {
-        "cpu" => Ok(None),
-        "gpu" => skelight_gpu::job::estimator_for(integrator, params)
-            .map(Some)
-            .map_err(|e| error(format!("device = 'gpu': {e}"))),
-        other => Err(error(format!("device = '{other}': give 'cpu' or 'gpu'"))),
-    }
+/// `device = "cpu"` or `"gpu"`.
+fn parse_device(device: &str) -> PyResult<Device> {
+    device.parse().map_err(error)
 }
 
 /// Renders `scene` with an estimator of the registry (`skelight.integrators()` lists them
@@ -217,9 +209,9 @@ pub fn render(
     debug: Option<std::path::PathBuf>,
 ) -> PyResult<Render> {
     let pairs = param_pairs(params)?;
-    let on_gpu = gpu_estimator(device, integrator, &pairs)?;
-    if debug.is_some() && (on_gpu.is_some() || shard.is_some()) {
-        return Err(error("debug = …: its pictures belong to a whole CPU render (no device = 'gpu', no shard)"));
+    let device = parse_device(device)?;
+    if debug.is_some() {
+        skelight::debug::check_request(device, shard.is_some()).map_err(|e| error(format!("debug = …: {e}")))?;
     }
     let time = match time {
         Some(t) if !(t > 0.0 && t.is_finite() && t < 1e9) => {
@@ -229,7 +221,6 @@ pub fn render(
         None => None,
     };
     let shard = shard.map(|(k, n)| Shard::new(k, n)).transpose().map_err(error)?;
-    let device = if on_gpu.is_some() { Device::Gpu } else { Device::Cpu };
     let spec = JobSpec { integrator: integrator.to_string(), params: pairs, spp, time, seed, threads, shard, device };
     let scene_lock = scene.scene.clone();
     let label = scene.label();

@@ -123,9 +123,9 @@ def test_gpu_device_shards_and_time_budget(c01, gpu_render):
     assert list(curves) == ["gpu:ibpt", "pt"]
     final = gpu_render(scene, integrator="ibpt", seed=2, spp=int(curves["gpu:ibpt"]["spp"][-1]))
     np.testing.assert_allclose(curves["gpu:ibpt"]["image"], np.asarray(final), rtol=1e-5, atol=1e-7)
-    with pytest.raises(skelight.SkelightError, match="renders pt, ibpt or lt, not bpt"):
+    with pytest.raises(skelight.SkelightError, match="the GPU renders pt, ibpt, lt, not bpt"):
         skelight.render(scene, integrator="bpt", spp=1, device="gpu")
-    with pytest.raises(skelight.SkelightError, match="no estimator parameters"):
+    with pytest.raises(skelight.SkelightError, match="pt has no parameter 'rr_depth'"):
         skelight.render(scene, integrator="pt", spp=1, device="gpu", params={"rr_depth": 3})
     with pytest.raises(skelight.SkelightError, match="give 'cpu' or 'gpu'"):
         skelight.render(scene, spp=1, device="tpu")

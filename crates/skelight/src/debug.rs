@@ -14,6 +14,23 @@ fn create_dir(dir: &Path) -> Result<(), JobError> {
     std::fs::create_dir_all(dir).map_err(|e| JobError::Invalid(format!("creating {}: {e}", dir.display())))
 }
 
+/// Whether a render on `device`, sharded or not, can write the estimator's debug folder:
+/// its pictures belong to a whole CPU render (the CLI's `--debug` and Python's `debug =`
+/// ask this before the scene loads).
+pub fn check_request(device: crate::job::Device, sharded: bool) -> Result<(), JobError> {
+    if device != crate::job::Device::Cpu {
+        return Err(JobError::Invalid(
+            "the debug pictures belong to the CPU estimators: render them without the GPU".into(),
+        ));
+    }
+    if sharded {
+        return Err(JobError::Invalid(
+            "a shard renders a slice of the samples: render the debug pictures without one".into(),
+        ));
+    }
+    Ok(())
+}
+
 /// Whether `job` can render an estimator's parts: they need a sample count (and no time
 /// budget), so that every part sees the same samples.
 pub fn check_parts(job: &Job) -> Result<(), JobError> {

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use crate::checkpoint::Checkpoint;
 use crate::film::Film;
 use crate::imageio::{Image, ImageError};
-use crate::integrator::params::ParamError;
+use crate::integrator::params::{ParamError, Params};
 use crate::integrator::{self, Integrator, Preparation, Progress, RenderError, RenderOptions};
 use crate::scene::load::LoadError;
 use crate::scene::Scene;
@@ -62,6 +62,27 @@ pub enum Device {
     Gpu,
 }
 
+impl Device {
+    pub fn name(self) -> &'static str {
+        match self {
+            Device::Cpu => "cpu",
+            Device::Gpu => "gpu",
+        }
+    }
+}
+
+/// `cpu` or `gpu`, as `--device` and Python's `device =` write it.
+impl std::str::FromStr for Device {
+    type Err = JobError;
+    fn from_str(s: &str) -> Result<Device, JobError> {
+        match s {
+            "cpu" => Ok(Device::Cpu),
+            "gpu" => Ok(Device::Gpu),
+            other => Err(JobError::Invalid(format!("device '{other}': give 'cpu' or 'gpu'"))),
+        }
+    }
+}
+
 /// What to render with, and for how long.
 #[derive(Clone, Debug, Default)]
 pub struct JobSpec {
@@ -84,6 +105,9 @@ pub struct JobSpec {
 /// A render ready to run on a scene.
 pub struct Job {
     pub integrator: Box<dyn Integrator>,
+    /// The registry's parameters it was built from (defaults, the scene's `<integrator>`
+    /// properties, the job's): what a GPU job's kernels read too.
+    pub params: Params,
     pub opts: RenderOptions,
     /// Names the scene in reports and manifests (its path, or the default scene).
     pub label: String,
@@ -170,8 +194,9 @@ pub fn save_film(film: &Film, spp: u32, output: &Path, exposure: f32) -> Result<
 
 impl Job {
     pub fn new(scene: &Scene, label: impl Into<String>, spec: &JobSpec) -> Result<Job, JobError> {
-        let (integrator, mut warnings) =
-            crate::estimators::registry::create_for_scene(&spec.integrator, &scene.settings, &spec.params)?;
+        let (estimator, params, mut warnings) =
+            crate::estimators::registry::params_for_scene(&spec.integrator, &scene.settings, &spec.params)?;
+        let integrator = (estimator.create)(&params);
         match (spec.spp, spec.time) {
             (Some(0), _) => return Err(JobError::Invalid("the sample count must be at least 1".into())),
             (None, None) => return Err(JobError::Invalid("give a sample count or a time budget".into())),
@@ -203,7 +228,7 @@ impl Job {
             warnings.push(format!("{why}; the image will miss that light"));
         }
         let opts = RenderOptions { spp: spec.spp, time: spec.time, seed: spec.seed, threads: spec.threads };
-        Ok(Job { integrator, opts, label: label.into(), shard: spec.shard, device: spec.device, warnings })
+        Ok(Job { integrator, params, opts, label: label.into(), shard: spec.shard, device: spec.device, warnings })
     }
 
     /// Identifies what is rendered, so that a checkpoint is resumed and shards merged only
@@ -224,8 +249,8 @@ impl Job {
         if self.shard.is_some() {
             key += &format!("|{} spp", self.opts.spp.unwrap_or(0));
         }
-        if self.device == Device::Gpu {
-            key += "|device gpu";
+        if self.device != Device::Cpu {
+            key += &format!("|device {}", self.device.name());
         }
         key
     }
@@ -306,6 +331,12 @@ pub type Render = dyn FnMut(
     Option<(Film, u32)>,
     &mut dyn FnMut(&Progress, &Film) -> Result<(), JobError>,
 ) -> Result<Rendered, JobError>;
+
+/// The CPU's renderer: the job's own estimator ([`Job::run`]); the device switch
+/// (`skelight_gpu::job::renderer_for`) returns it for a CPU job.
+pub fn cpu_renderer() -> Box<Render> {
+    Box::new(|job, scene, resume, on_pass| job.run(scene, resume, on_pass))
+}
 
 /// A long render to OUT.exr that checkpoints to OUT.exr.ckpt and, started again with the same
 /// job, resumes from it: on the CPU the result is bit-identical to an uninterrupted render

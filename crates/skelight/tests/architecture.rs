@@ -5,6 +5,7 @@
 //! file, the line and the rule.
 
 use std::collections::BTreeSet;
+
 use std::path::{Path, PathBuf};
 
 /// The library's layers, lowest first, and the top-level modules in each. A module may name
@@ -43,26 +44,161 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-/// The file's lines without comments (`//` to the end of the line).
+/// The file's code without comments (`//` to the end of the line, `/* … */`), line by line;
+/// string literals are blanked so that a `//` or a path inside one counts for nothing.
 fn code_lines(path: &Path) -> Vec<(usize, String)> {
-    std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.split("//").next().unwrap_or("").to_string()))
-        .collect()
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut out = Vec::new();
+    let (mut block, mut string) = (0usize, false);
+    for (i, line) in text.lines().enumerate() {
+        let mut code = String::new();
+        let chars: Vec<char> = line.chars().collect();
+        let mut k = 0;
+        while k < chars.len() {
+            let (c, next) = (chars[k], chars.get(k + 1).copied());
+            if block > 0 {
+                if c == '*' && next == Some('/') {
+                    block -= 1;
+                    k += 1;
+                } else if c == '/' && next == Some('*') {
+                    block += 1;
+                    k += 1;
+                }
+            } else if string {
+                if c == '\\' {
+                    k += 1;
+                } else if c == '"' {
+                    string = false;
+                    code.push('"');
+                }
+            } else if c == '/' && next == Some('/') {
+                break;
+            } else if c == '/' && next == Some('*') {
+                block += 1;
+                k += 1;
+            } else if c == '"' && !code.ends_with('\'') {
+                string = true;
+                code.push('"');
+            } else {
+                code.push(c);
+            }
+            k += 1;
+        }
+        out.push((i + 1, code));
+    }
+    out
 }
 
-/// Identifiers that follow `prefix` in `line` (`crate::` → the top-level module named).
-fn names_after<'a>(line: &'a str, prefix: &str) -> Vec<&'a str> {
-    line.match_indices(prefix)
-        .filter(|(i, _)| !line[..*i].ends_with(|c: char| c.is_alphanumeric() || c == '_'))
-        .map(|(i, _)| {
-            let rest = &line[i + prefix.len()..];
-            let end = rest.find(|c: char| !(c.is_alphanumeric() || c == '_')).unwrap_or(rest.len());
-            &rest[..end]
-        })
-        .collect()
+/// The module path of a source file relative to `src` (`paths/walk.rs` → paths, walk;
+/// `estimators/mod.rs` → estimators).
+fn module_path(rel: &str) -> Vec<String> {
+    let mut parts: Vec<String> = rel.trim_end_matches(".rs").split('/').map(str::to_string).collect();
+    if parts.last().is_some_and(|p| p == "mod" || p == "lib") {
+        parts.pop();
+    }
+    parts
+}
+
+fn identifier(text: &str) -> &str {
+    let end = text.find(|c: char| !(c.is_alphanumeric() || c == '_')).unwrap_or(text.len());
+    &text[..end]
+}
+
+/// The path `text` starts with, segment by segment, with a brace group (`{a::b, c}`)
+/// expanded into one path per item: `x::{y, z::w}` → [x, y], [x, z, w].
+fn expand(text: &str) -> Vec<Vec<String>> {
+    let text = text.trim_start();
+    if let Some(group) = text.strip_prefix('{') {
+        let (mut depth, mut item_start, mut out) = (0i32, 0, Vec::new());
+        for (i, c) in group.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' if depth == 0 => {
+                    out.extend(expand(&group[item_start..i]));
+                    return out;
+                }
+                '}' => depth -= 1,
+                ',' if depth == 0 => {
+                    out.extend(expand(&group[item_start..i]));
+                    item_start = i + 1;
+                }
+                _ => {}
+            }
+        }
+        out.extend(expand(&group[item_start..]));
+        return out;
+    }
+    let head = identifier(text);
+    if head.is_empty() {
+        return vec![Vec::new()];
+    }
+    let rest = &text[head.len()..];
+    match rest.trim_start().strip_prefix("::") {
+        Some(tail) => expand(tail)
+            .into_iter()
+            .map(|mut p| {
+                p.insert(0, head.to_string());
+                p
+            })
+            .collect(),
+        None => vec![vec![head.to_string()]],
+    }
+}
+
+/// Every absolute module path the code names from module `own`: `crate::…`, and
+/// `super::…`/`self::…` chains resolved from `own`, with use-groups expanded (a statement
+/// spanning lines is joined first, and reported at its first line).
+fn named_paths(lines: &[(usize, String)], own: &[String]) -> Vec<(usize, Vec<String>)> {
+    // Joins each `use … ;` onto its first line.
+    let mut joined: Vec<(usize, String)> = Vec::new();
+    let mut open: Option<(usize, String)> = None;
+    for (n, line) in lines {
+        if let Some((at, text)) = open.as_mut() {
+            text.push(' ');
+            text.push_str(line);
+            if line.contains(';') {
+                joined.push((*at, std::mem::take(text)));
+                open = None;
+            }
+            continue;
+        }
+        if (line.trim_start().starts_with("use ") || line.contains(" use ")) && !line.contains(';') {
+            open = Some((*n, line.clone()));
+            continue;
+        }
+        joined.push((*n, line.clone()));
+    }
+    let mut out = Vec::new();
+    for (n, line) in joined {
+        for (i, _) in
+            line.match_indices("crate::").chain(line.match_indices("super::")).chain(line.match_indices("self::"))
+        {
+            if line[..i].ends_with(|c: char| c.is_alphanumeric() || c == '_' || c == ':') {
+                continue;
+            }
+            for path in expand(&line[i..]) {
+                let mut absolute: Vec<String> = match path.first().map(String::as_str) {
+                    Some("crate") => Vec::new(),
+                    Some("self") => own.to_vec(),
+                    Some("super") => own.to_vec(),
+                    _ => continue,
+                };
+                let mut segments = path.iter().skip(1).peekable();
+                if path[0] == "super" {
+                    absolute.pop();
+                    while segments.peek().is_some_and(|s| *s == "super") {
+                        absolute.pop();
+                        segments.next();
+                    }
+                }
+                absolute.extend(segments.cloned());
+                if !absolute.is_empty() {
+                    out.push((n, absolute));
+                }
+            }
+        }
+    }
+    out
 }
 
 fn layer_of(module: &str) -> Option<usize> {
@@ -91,28 +227,40 @@ fn broken_rules(root: &Path) -> Vec<String> {
         };
         let stem = Path::new(&rel).file_stem().unwrap().to_string_lossy().to_string();
         let is_leaf = own == "estimators" && LEAVES.contains(&stem.as_str());
-        for (n, line) in code_lines(path) {
-            for used in names_after(&line, "crate::") {
-                match layer_of(used) {
-                    Some(l) if l > own_layer && !(own_layer == 0 && l == 0) => broken.push(format!(
-                        "{rel}:{n}: {} ({own}) names {used} ({}), a layer above it",
-                        LAYERS[own_layer].0, LAYERS[l].0
-                    )),
-                    _ => {}
-                }
+        let lines = code_lines(path);
+        for (n, named) in named_paths(&lines, &module_path(&rel)) {
+            let used = named[0].as_str();
+            match layer_of(used) {
+                Some(l) if l > own_layer && !(own_layer == 0 && l == 0) => broken.push(format!(
+                    "{rel}:{n}: {} ({own}) names {used} ({}), a layer above it",
+                    LAYERS[own_layer].0, LAYERS[l].0
+                )),
+                _ => {}
             }
             // Estimators are leaves: only their doors name them, and no leaf names another.
-            if !LEAF_DOORS.contains(&rel.as_str()) {
-                for prefix in ["estimators::", "resampling::", "super::"] {
-                    for used in names_after(&line, prefix) {
-                        let named_leaf = LEAVES.contains(&used) && used != stem;
-                        let from_estimators = own == "estimators" || prefix == "estimators::";
-                        if named_leaf && from_estimators {
-                            let who = if is_leaf { "an estimator" } else { "a module" };
-                            broken
-                                .push(format!("{rel}:{n}: {who} names the estimator '{used}' (only the registry may)"));
-                        }
-                    }
+            let leaf =
+                (used == "estimators").then(|| named.iter().skip(1).find(|s| LEAVES.contains(&s.as_str()))).flatten();
+            if let Some(leaf) = leaf.filter(|l| **l != stem && !LEAF_DOORS.contains(&rel.as_str())) {
+                let who = if is_leaf { "an estimator" } else { "a module" };
+                broken.push(format!("{rel}:{n}: {who} names the estimator '{leaf}' (only the registry may)"));
+            }
+        }
+        // A door other than the registry declares its leaves privately and hands them to the
+        // registry alone (`pub(super) use`): a public `mod` or re-export would open a leaf.
+        if LEAF_DOORS.contains(&rel.as_str()) && rel != "estimators/registry.rs" {
+            for (n, line) in &lines {
+                let t = line.trim_start();
+                let public = (t.starts_with("pub use") || t.starts_with("pub(crate) use") || t.starts_with("pub mod"))
+                    || t.starts_with("pub(crate) mod");
+                let names_leaf = LEAVES.iter().any(|l| {
+                    t.match_indices(l).any(|(i, _)| {
+                        let before = t[..i].chars().last().is_none_or(|c| !(c.is_alphanumeric() || c == '_'));
+                        let after = t[i + l.len()..].chars().next().is_none_or(|c| !(c.is_alphanumeric() || c == '_'));
+                        before && after
+                    })
+                });
+                if public && names_leaf {
+                    broken.push(format!("{rel}:{n}: a door opens an estimator to the crate ({})", t.trim()));
                 }
             }
         }
@@ -147,12 +295,24 @@ fn the_layer_check_sees_a_broken_rule() {
     append("paths/walk.rs", "\nuse crate::estimators::registry;\n");
     append("guided/analysis.rs", "\nfn f() { crate::estimators::by_name(\"pt\"); }\n");
     append("estimators/skelpt.rs", "\nuse super::pt::PathTracer;\n");
+    // The forms a line-by-line reading would miss: a use-group over lines, `super::super`,
+    // a grouped leaf, a door's public re-export; and a path inside a string names nothing.
+    append("paths/mis.rs", "\nuse crate::{\n    math::Vec3,\n    guided::SkeletonGuide,\n};\n");
+    append("paths/bidir.rs", "\nfn g() { super::super::estimators::names(); }\n");
+    append("estimators/lt.rs", "\nuse super::{registry, ibpt::InstantBpt};\n");
+    append("estimators/mod.rs", "\npub use pt::PathTracer;\n");
+    append("paths/vertex.rs", "\nconst URL: &str = \"http://x crate::estimators::pt\"; /* crate::guided */\n");
     let broken = broken_rules(&copy);
     let seen = |what: &str| broken.iter().any(|b| b.contains(what));
     assert!(seen("paths/walk.rs") && seen("a layer above"), "{broken:?}");
     assert!(seen("guided/analysis.rs"), "{broken:?}");
     assert!(seen("estimators/skelpt.rs") && seen("names the estimator 'pt'"), "{broken:?}");
-    assert_eq!(broken.len(), 3, "{broken:?}");
+    assert!(seen("paths/mis.rs") && seen("names guided"), "{broken:?}");
+    assert!(seen("paths/bidir.rs"), "{broken:?}");
+    assert!(seen("estimators/lt.rs") && seen("names the estimator 'ibpt'"), "{broken:?}");
+    assert!(seen("estimators/mod.rs") && seen("opens an estimator"), "{broken:?}");
+    assert!(!seen("paths/vertex.rs"), "{broken:?}");
+    assert_eq!(broken.len(), 7, "{broken:?}");
 }
 
 /// The other crates reach estimators by name: none downcasts one, none names a leaf.

@@ -198,6 +198,18 @@ impl Params {
         }
     }
 
+    /// The estimator these are the parameters of.
+    pub fn estimator(&self) -> &'static str {
+        self.estimator
+    }
+
+    /// The names of the parameters set to another value than their default: what a device
+    /// that honours only some of them (the GPU's kernels) must refuse.
+    pub fn changed(&self) -> Vec<&'static str> {
+        let default = |s: &ParamSpec| s.parse(s.default).ok();
+        self.values.iter().filter(|(s, v)| default(s).as_ref() != Some(v)).map(|(s, _)| s.name).collect()
+    }
+
     /// `name=value` for every parameter, for reports and checkpoint keys.
     pub fn summary(&self) -> String {
         self.values.iter().map(|(s, v)| format!("{}={v}", s.name)).collect::<Vec<_>>().join(" ")

@@ -5,7 +5,7 @@
 use super::mis::{self, Heuristic, Junction, PathWeight, StrategySet, SubPath};
 use super::mutation::{factor, Strategy};
 use super::vertex::{Joined, LensHit, Vertex, VertexKind};
-use super::visibility::{light_visible, visible, visible_from_near_plane};
+use super::visibility::{light_visible, visible, visible_from_near_plane, ShadowEnd};
 use crate::color::Rgb;
 use crate::material::TransportMode;
 use crate::math::{Vec2, Vec3};
@@ -89,7 +89,7 @@ pub fn connect_to_light(scene: &Scene, camera: &[Vertex], t: usize, rng: &mut Rn
     if jz.f.is_black() {
         return Rgb::BLACK;
     }
-    if !light_visible(scene, &z.si, (!infinite).then_some(ls.p), ls.wi) {
+    if !light_visible(scene, &z.si, ShadowEnd::of_light(ls.p, ls.wi, infinite)) {
         return Rgb::BLACK;
     }
     let camera_end = z.end_densities(scene, &jz, &camera[t - 2], &lv);

@@ -1,6 +1,9 @@
 //! The one visibility seam: every shadow test of a connection (next-event estimation, the
-//! (s, t) joins, the resampling tables' visibility) asks it, so that an estimator can answer
-//! visibility another way without touching the strategies.
+//! (s, t) joins, the resampling tables' visibility) is built and answered here, and nowhere
+//! else (primary and extension rays are not connections and trace the scene directly).
+//! Today every connection is answered by [`ShadowRays`] through the free functions below; the
+//! first estimator that answers another way (`vpl`'s skeleton shadow maps, issue 57) passes
+//! its [`Visibility`] or [`GroupVisibility`] to the strategies in their place.
 //!
 //! Two kinds of question:
 //! - **pairwise** ([`Visibility`]): is this segment unoccluded? [`ShadowRays`] answers it
@@ -101,13 +104,33 @@ pub fn visible_from_near_plane(scene: &Scene, near_point: Vec3, y: &Vertex) -> b
     ShadowRays.unoccluded(scene, &Ray { o: near_point, d: q - near_point, tmax: 1.0 - 1e-4 })
 }
 
-/// Shadow ray from surface point `si` to a sampled light point `p`, or along direction `wi`
-/// to an infinite light (`p` is then `None`): next-event estimation's test.
+/// Where a shadow ray from a surface ends: at a point (a light's, a skeleton node's), or
+/// along a direction out of the scene (an infinite light).
+#[derive(Clone, Copy, Debug)]
+pub enum ShadowEnd {
+    Point(Vec3),
+    Direction(Vec3),
+}
+
+impl ShadowEnd {
+    /// The end of a light sample `ls`: its point, or its direction for an infinite light.
+    #[inline]
+    pub fn of_light(p: Vec3, wi: Vec3, infinite: bool) -> ShadowEnd {
+        if infinite {
+            ShadowEnd::Direction(wi)
+        } else {
+            ShadowEnd::Point(p)
+        }
+    }
+}
+
+/// Shadow ray from surface point `si` to `end`: next-event estimation's test, and a light
+/// vertex's view of a skeleton node.
 #[inline]
-pub fn light_visible(scene: &Scene, si: &SurfaceInteraction, p: Option<Vec3>, wi: Vec3) -> bool {
-    let shadow = match p {
-        Some(p) => si.spawn_ray_to(p),
-        None => si.spawn_ray(wi),
+pub fn light_visible(scene: &Scene, si: &SurfaceInteraction, end: ShadowEnd) -> bool {
+    let shadow = match end {
+        ShadowEnd::Point(p) => si.spawn_ray_to(p),
+        ShadowEnd::Direction(wi) => si.spawn_ray(wi),
     };
     ShadowRays.unoccluded(scene, &shadow)
 }

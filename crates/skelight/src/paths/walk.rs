@@ -9,7 +9,7 @@
 //! Path lengths follow Mitsuba: `max_depth` counts segments, so 2 means direct lighting only.
 
 use super::mutation::{factor, Strategy};
-use super::visibility::light_visible;
+use super::visibility::{light_visible, ShadowEnd};
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::material::{Bsdf, BsdfCtx, BsdfModel, TransportMode};
@@ -251,8 +251,8 @@ pub fn trace<G: DirectionGuide>(
                 if !ls.radiance.is_black() && ls.pdf > 0.0 {
                     let wo = si.frame.to_local(ls.wi);
                     let f = bsdf.eval(&ctx, wi, wo);
-                    let towards = ls.dist.is_finite().then_some(ls.p);
-                    if !f.is_black() && light_visible(scene, &si, towards, ls.wi) {
+                    let end = ShadowEnd::of_light(ls.p, ls.wi, !ls.dist.is_finite());
+                    if !f.is_black() && light_visible(scene, &si, end) {
                         let pdf = pmf * ls.pdf;
                         let scale = if ls.delta {
                             1.0 / pdf

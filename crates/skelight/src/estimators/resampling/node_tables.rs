@@ -33,7 +33,7 @@ use crate::math::{vec2, Vec3};
 use crate::paths::mis::Heuristic;
 use crate::paths::subpath::{camera_subpath, LightPaths};
 use crate::paths::vertex::{Vertex, VertexKind};
-use crate::paths::visibility::light_visible;
+use crate::paths::visibility::{light_visible, ShadowEnd};
 use crate::sampling::Rng;
 use crate::scene::Scene;
 
@@ -196,7 +196,7 @@ fn build_table<'a>(
         let y = vertex(c);
         let d2 = (at - y.p()).length_squared().max(1e-12) as f64;
         weights.push((y.beta.luminance().max(0.0) as f64) / d2);
-        seen.push(light_visible(scene, &y.si, Some(at), Vec3::ZERO));
+        seen.push(light_visible(scene, &y.si, ShadowEnd::Point(at)));
     }
     let visible = seen.iter().filter(|v| **v).count() as u64;
     let (probabilities, origins) = super::candidates::combine(&weights, &seen, combination);
