@@ -26,7 +26,7 @@ const LAYERS: &[(&str, &[&str])] = &[
 ];
 
 /// The estimator modules (leaves) and the only files that may name them.
-const LEAVES: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt", "skelbpt", "icbpt"];
+const LEAVES: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt", "portalpt", "skelbpt", "icbpt"];
 const LEAF_DOORS: &[&str] = &["estimators/mod.rs", "estimators/registry.rs", "estimators/resampling/mod.rs"];
 
 fn src() -> PathBuf {

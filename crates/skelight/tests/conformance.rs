@@ -208,8 +208,15 @@ fn icbpt_matches_mitsuba_on_every_conformance_scene() {
     run_conformance("icbpt", 18);
 }
 
+/// portalpt draws directions through the opening portals towards the lit regions, weighted
+/// by the exact density of the blended mixture: unbiased on every scene.
+#[test]
+fn portalpt_matches_mitsuba_on_every_conformance_scene() {
+    run_conformance("portalpt", 18);
+}
+
 /// The estimators the tests above check: every one the registry offers must be among them.
-const CHECKED: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt", "skelbpt", "icbpt"];
+const CHECKED: &[&str] = &["pt", "lt", "bpt", "ibpt", "skelpt", "portalpt", "skelbpt", "icbpt"];
 
 #[test]
 fn every_registered_estimator_has_a_conformance_test() {

@@ -8,6 +8,7 @@
 mod bpt;
 mod ibpt;
 mod lt;
+mod portalpt;
 mod pt;
 pub mod registry;
 pub mod resampling;

@@ -4,7 +4,7 @@
 //! tests all read it, so adding an estimator here is all it takes to offer it everywhere.
 
 use super::resampling::{IcBpt, SkeletonBpt, ICBPT_PARAMS, SKELBPT_PARAMS};
-use super::{bpt, ibpt, lt, pt, skelpt};
+use super::{bpt, ibpt, lt, portalpt, pt, skelpt};
 use crate::integrator::params::{self, ParamError, ParamSpec, Params};
 use crate::integrator::Integrator;
 use crate::paths::bidir::{PixelSampler, Recorded};
@@ -67,6 +67,13 @@ pub static ESTIMATORS: &[Estimator] = &[
         doc: "path tracing guided by the skeleton of the empty space towards lit places (thesis ch. 9)",
         params: skelpt::PARAMS,
         create: |p| Box::new(skelpt::SkeletonPathTracer::from_params(p)),
+    },
+    Estimator {
+        name: "portalpt",
+        aliases: &[],
+        doc: "path tracing guided through the opening portals of the empty space towards lit regions (thesis ch. 10.4)",
+        params: portalpt::PARAMS,
+        create: |p| Box::new(portalpt::PortalPathTracer::from_params(p)),
     },
     Estimator {
         name: "skelbpt",

@@ -21,9 +21,9 @@ use crate::guided::{Guidance, GuidanceSettings, SkeletonGuide};
 use crate::integrator::diagnostics::DebugFile;
 use crate::integrator::params::{ParamKind, ParamSpec, Params};
 use crate::integrator::{Integrator, Preparation, PrepareError, SampleContext, Scratch};
-use crate::material::{Bsdf, BsdfModel};
+use crate::material::Bsdf;
 use crate::math::{vec2, Vec3};
-use crate::paths::walk::{trace, DirectionGuide, GuidedStep, GuidedVertex};
+use crate::paths::walk::{guidable, trace, DirectionGuide, GuidedStep, GuidedVertex};
 use crate::sampling::Rng;
 use crate::scene::{Scene, SurfaceInteraction};
 
@@ -191,10 +191,7 @@ impl<'g> DirectionGuide for SkeletonGuidance<'g> {
         Self: 'a;
     #[inline]
     fn at<'a>(&'a self, si: &SurfaceInteraction, bsdf: &Bsdf) -> Option<SkeletonVertex<'a>> {
-        let side = bsdf.facing(si.frame.to_local(si.wi));
-        // A delta lobe beside smooth ones (a coating) is drawn with probability 1 − c, so
-        // guiding there pays 1/(1 − c) on every specular path (measured: worse on veach-door).
-        if side.near_specular() || !side.has_smooth() || side.has_delta_lobe() {
+        if !guidable(si, bsdf) {
             return None;
         }
         let node = self.guide.node_at(si.p, si.ng, si.wi)?;

@@ -110,6 +110,21 @@ pub struct ImportanceFile {
 }
 
 /// The first hit of a ray through every pixel's centre.
+/// Any labelling of the primary hits (regions, nodes) as false colours, through the
+/// scene's camera at its current resolution.
+pub fn label_picture(scene: &Scene, label_of: impl Fn(&SurfaceInteraction) -> Option<u32> + Sync) -> Image {
+    false_colours(scene.settings.width, scene.settings.height, &primary_hits(scene), label_of)
+}
+
+/// A value in [0, 1] at each primary hit as a grey level (black where nothing is hit).
+pub fn value_picture(scene: &Scene, value_of: impl Fn(&SurfaceInteraction) -> f32 + Sync) -> Image {
+    let pixels = primary_hits(scene)
+        .par_iter()
+        .map(|hit| hit.as_ref().map_or(Rgb::BLACK, |si| Rgb::WHITE * value_of(si).clamp(0.0, 1.0)))
+        .collect();
+    Image { width: scene.settings.width, height: scene.settings.height, pixels }
+}
+
 fn primary_hits(scene: &Scene) -> Vec<Option<SurfaceInteraction>> {
     scene.camera.pixel_centre_rays().par_iter().map(|r| scene.intersect(r)).collect()
 }

@@ -44,6 +44,16 @@ pub trait GuidedVertex {
     fn sample(&self, rng: &mut Rng) -> Vec3;
 }
 
+/// Whether a guide may draw at `si` with BSDF `bsdf`: not where the side it is seen from is
+/// near-specular, has no smooth lobe, or has a delta lobe beside smooth ones (a coating:
+/// drawn with probability 1 − c only, guiding would pay 1/(1 − c) on every specular path;
+/// measured worse on veach-door).
+#[inline]
+pub fn guidable(si: &SurfaceInteraction, bsdf: &Bsdf) -> bool {
+    let side = bsdf.facing(si.frame.to_local(si.wi));
+    !(side.near_specular() || !side.has_smooth() || side.has_delta_lobe())
+}
+
 /// No guide: plain path tracing.
 pub struct Unguided;
 

@@ -1,0 +1,456 @@
+//! Opening-forest regions and their portals as rendering reads them (thesis §10.3.3–10.3.4):
+//! which regions a surface point belongs to, blended over a few voxels so that anything
+//! chosen per region varies continuously over surfaces (§10.5's suggestion against the
+//! seams of Figs. 91 and 94); the regions that hold a light; and, per portal, uniform
+//! sampling of a point on its faces with the exact solid-angle density of the direction
+//! towards it, summed over *every* face of the portal the line x + tω (t > 0) crosses,
+//! occluded or not (a portal's faces form a staircase that one line may cross several times).
+//!
+//! A face belongs to portal {A, B} exactly when the voxels on its two sides are labelled A
+//! and B (Def. 10.12), so the density walks the voxel grid along the line (a 3D DDA,
+//! Amanatides & Woo) inside the portal's box and tests each face it crosses by its two labels:
+//! no list of faces is searched.
+
+use std::sync::Arc;
+
+use skelight_shape::labeling::NO_LABEL;
+use skelight_shape::mapping::surface_voxel;
+
+use super::analysis::{to_f64, SkeletonGuide};
+use crate::light::Light;
+use crate::math::{vec3, Vec3};
+use crate::scene::Scene;
+
+/// How many distinct regions a point's blend keeps (the heaviest; more are rare).
+pub const MAX_BLEND: usize = 8;
+
+/// One portal as sampling reads it.
+#[derive(Clone, Debug)]
+pub struct PortalShape {
+    pub from: u32,
+    pub to: u32,
+    /// Its faces: the lower voxel's coordinates and the axis the face is normal to.
+    faces: Vec<([u32; 3], u8)>,
+    /// The voxels on both sides of its faces, inclusive.
+    voxel_lo: [i64; 3],
+    voxel_hi: [i64; 3],
+    /// World-space area (faces × voxel²).
+    pub area: f32,
+    pub centroid: Vec3,
+}
+
+/// A point's regions and their weights (summing to 1).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RegionBlend {
+    len: usize,
+    items: [(u32, f32); MAX_BLEND],
+}
+
+impl RegionBlend {
+    pub fn single(region: u32) -> RegionBlend {
+        let mut b = RegionBlend::default();
+        b.items[0] = (region, 1.0);
+        b.len = 1;
+        b
+    }
+    pub fn iter(&self) -> impl Iterator<Item = (u32, f32)> + '_ {
+        self.items[..self.len].iter().copied()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    /// Adds weight `w` to `region`; a new region past [`MAX_BLEND`] replaces the lightest
+    /// when heavier.
+    fn add(&mut self, region: u32, w: f32) {
+        if let Some(item) = self.items[..self.len].iter_mut().find(|(r, _)| *r == region) {
+            item.1 += w;
+        } else if self.len < MAX_BLEND {
+            self.items[self.len] = (region, w);
+            self.len += 1;
+        } else if let Some(lightest) =
+            self.items.iter_mut().min_by(|a, b| a.1.total_cmp(&b.1)).filter(|lightest| lightest.1 < w)
+        {
+            *lightest = (region, w);
+        }
+    }
+    fn normalise(&mut self) {
+        let total: f32 = self.iter().map(|(_, w)| w).sum();
+        if total > 0.0 {
+            for item in &mut self.items[..self.len] {
+                item.1 /= total;
+            }
+        } else {
+            self.len = 0;
+        }
+    }
+}
+
+/// The regions and portals of a scene's analysis.
+pub struct Regions {
+    guide: Arc<SkeletonGuide>,
+    origin: Vec3,
+    voxel: f32,
+    dims: [i64; 3],
+    /// Regions 1..=count (index 0 unused).
+    pub count: u32,
+    /// Each region's voxel count and the mean of its voxels' centres.
+    pub sizes: Vec<u64>,
+    pub centroids: Vec<Vec3>,
+    pub portals: Vec<PortalShape>,
+}
+
+impl Regions {
+    pub fn new(guide: Arc<SkeletonGuide>) -> Regions {
+        let spec = guide.labelling.labels.spec;
+        let origin = vec3(spec.origin[0] as f32, spec.origin[1] as f32, spec.origin[2] as f32);
+        let voxel = spec.voxel as f32;
+        let dims = spec.dims.map(|d| d as i64);
+        let count = guide.labelling.count;
+        let mut sums = vec![[0.0f64; 3]; count as usize + 1];
+        let mut sizes = vec![0u64; count as usize + 1];
+        for (i, &l) in guide.labelling.labels.data.iter().enumerate() {
+            if l != NO_LABEL && (l as usize) < sizes.len() {
+                let [x, y, z] = spec.coords(i);
+                let c = spec.center(x, y, z);
+                for a in 0..3 {
+                    sums[l as usize][a] += c[a];
+                }
+                sizes[l as usize] += 1;
+            }
+        }
+        let centroids = sums
+            .iter()
+            .zip(&sizes)
+            .map(|(s, &n)| {
+                let n = n.max(1) as f64;
+                vec3((s[0] / n) as f32, (s[1] / n) as f32, (s[2] / n) as f32)
+            })
+            .collect();
+        let portals = guide
+            .portals
+            .iter()
+            .map(|p| {
+                let faces: Vec<([u32; 3], u8)> = p
+                    .squares
+                    .iter()
+                    .map(|&(i, axis)| {
+                        let [x, y, z] = spec.coords(i);
+                        ([x as u32, y as u32, z as u32], axis)
+                    })
+                    .collect();
+                let mut lo = [i64::MAX; 3];
+                let mut hi = [i64::MIN; 3];
+                for &(v, axis) in &faces {
+                    for a in 0..3 {
+                        let c = v[a] as i64;
+                        lo[a] = lo[a].min(c);
+                        hi[a] = hi[a].max(c + i64::from(a == axis as usize));
+                    }
+                }
+                let c = p.centroid;
+                PortalShape {
+                    from: p.from,
+                    to: p.to,
+                    faces,
+                    voxel_lo: lo,
+                    voxel_hi: hi,
+                    area: p.area as f32,
+                    centroid: vec3(c[0] as f32, c[1] as f32, c[2] as f32),
+                }
+            })
+            .collect();
+        Regions { guide, origin, voxel, dims, count, sizes, centroids, portals }
+    }
+
+    pub fn voxel_size(&self) -> f32 {
+        self.voxel
+    }
+
+    /// The label of voxel `v` (NO_LABEL outside the grid and for scene voxels).
+    #[inline]
+    fn label(&self, v: [i64; 3]) -> u32 {
+        if (0..3).any(|a| v[a] < 0 || v[a] >= self.dims[a]) {
+            return NO_LABEL;
+        }
+        let i = (v[0] + self.dims[0] * (v[1] + self.dims[1] * v[2])) as usize;
+        self.guide.labelling.labels.data[i]
+    }
+
+    /// The region of the labelled voxel standing for surface point `p` seen from `towards`
+    /// (eq. 151–154, as the node mapping), if any.
+    pub fn region_at(&self, p: Vec3, ng: Vec3, towards: Vec3) -> Option<u32> {
+        let labels = &self.guide.labelling.labels;
+        let v = surface_voxel(&labels.spec, |i| labels.data[i] != NO_LABEL, to_f64(p), to_f64(ng), to_f64(towards))?;
+        Some(labels.data[v])
+    }
+
+    /// The regions of surface point `p` (normal `ng`, seen from `towards`) blended over
+    /// `radius` voxels: every labelled voxel whose centre lies within `radius` voxels (per
+    /// axis) of the point half a voxel off the surface weighs by a tent in each axis times
+    /// how far in front of the surface it lies (0 behind it, 1 from half a voxel ahead), so
+    /// the weights vary continuously with `p`. Where no voxel weighs (a point deep in thin
+    /// geometry), the region of [`Regions::region_at`] alone; a radius of 0 is that too (a
+    /// hard switch between regions). Empty outside the grid.
+    pub fn blend_at(&self, p: Vec3, ng: Vec3, towards: Vec3, radius: f32) -> RegionBlend {
+        let n = if ng.dot(towards) >= 0.0 { ng } else { -ng };
+        if radius > 0.0 {
+            let mut blend = RegionBlend::default();
+            let q = (p + n * (0.5 * self.voxel) - self.origin) * (1.0 / self.voxel);
+            let lo = [0, 1, 2].map(|a| (q[a] - 0.5 - radius).ceil() as i64);
+            let hi = [0, 1, 2].map(|a| (q[a] - 0.5 + radius).floor() as i64);
+            let pg = (p - self.origin) * (1.0 / self.voxel);
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
+                        let l = self.label([x, y, z]);
+                        if l == NO_LABEL {
+                            continue;
+                        }
+                        let c = vec3(x as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
+                        let tent = |a: usize| (1.0 - (q[a] - c[a]).abs() / radius).max(0.0);
+                        let front = ((c - pg).dot(n) + 0.5).clamp(0.0, 1.0);
+                        let w = tent(0) * tent(1) * tent(2) * front;
+                        if w > 0.0 {
+                            blend.add(l, w);
+                        }
+                    }
+                }
+            }
+            blend.normalise();
+            if !blend.is_empty() {
+                return blend;
+            }
+        }
+        self.region_at(p, ng, towards).map(RegionBlend::single).unwrap_or_default()
+    }
+
+    /// The regions that hold a light: an area light's (its centroid, on the side it faces),
+    /// a point or spot light's; for distant lights (directional, constant, environment), the
+    /// regions touching the grid's border, whose empty space opens to the outside of the
+    /// scene. Indexed by region.
+    pub fn lit(&self, scene: &Scene) -> Vec<bool> {
+        let mut lit = vec![false; self.count as usize + 1];
+        let mut mark = |r: Option<u32>| {
+            if let Some(r) = r.filter(|&r| r != NO_LABEL && (r as usize) < lit.len()) {
+                lit[r as usize] = true;
+            }
+        };
+        for anchor in super::analysis::anchors(scene, &[super::analysis::AnchorKind::Lights]) {
+            let p = vec3(anchor.position[0] as f32, anchor.position[1] as f32, anchor.position[2] as f32);
+            let side = vec3(anchor.side[0] as f32, anchor.side[1] as f32, anchor.side[2] as f32);
+            if side.length_squared() > 0.0 {
+                mark(self.region_at(p, side.normalize(), side.normalize()));
+            } else {
+                mark(self.region_at(p, vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, 1.0)));
+            }
+        }
+        if scene.lights.iter().any(Light::is_infinite) {
+            let [nx, ny, nz] = self.dims;
+            for z in 0..nz {
+                for y in 0..ny {
+                    for x in 0..nx {
+                        let border = x == 0 || y == 0 || z == 0 || x == nx - 1 || y == ny - 1 || z == nz - 1;
+                        if border {
+                            mark(Some(self.label([x, y, z])));
+                        }
+                    }
+                }
+            }
+        }
+        lit
+    }
+
+    /// A point drawn uniformly by area on portal `k`'s faces (density 1/area).
+    pub fn sample_portal(&self, k: usize, pick: f32, u: [f32; 2]) -> Vec3 {
+        let p = &self.portals[k];
+        let n = p.faces.len();
+        let (v, axis) = p.faces[((pick * n as f32) as usize).min(n - 1)];
+        let axis = axis as usize;
+        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+        let mut g = vec3(v[0] as f32, v[1] as f32, v[2] as f32);
+        g[axis] += 1.0;
+        g[b] += u[0];
+        g[c] += u[1];
+        self.origin + g * self.voxel
+    }
+
+    /// The solid-angle density at `x` of the direction `w` (unit) when a point is drawn
+    /// uniformly by area on portal `k` and joined to x: Σ over the portal's faces the line
+    /// x + tw (t > 0) crosses of t²/(|cos θ|·area), θ between w and the face's normal; 0 when
+    /// it crosses none.
+    pub fn portal_pdf(&self, k: usize, x: Vec3, w: Vec3) -> f32 {
+        let p = &self.portals[k];
+        // The portal's box in grid units, and the line clipped to it.
+        let inv = 1.0 / self.voxel;
+        let g0 = (x - self.origin) * inv;
+        let (mut t0, mut t1) = (0.0f32, f32::INFINITY);
+        for a in 0..3 {
+            let (lo, hi) = (p.voxel_lo[a] as f32, (p.voxel_hi[a] + 1) as f32);
+            if w[a] == 0.0 {
+                if g0[a] < lo || g0[a] > hi {
+                    return 0.0;
+                }
+                continue;
+            }
+            let (ta, tb) = ((lo - g0[a]) / w[a], (hi - g0[a]) / w[a]);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+        if t0 > t1 {
+            return 0.0;
+        }
+        // Amanatides–Woo from the entry point, in grid units (t too: world t = grid t·voxel).
+        let entry = g0 + w * t0;
+        let mut v = [0, 1, 2].map(|a| (entry[a].floor() as i64).clamp(p.voxel_lo[a], p.voxel_hi[a]));
+        let step = [0, 1, 2].map(|a| if w[a] > 0.0 { 1i64 } else { -1 });
+        let mut next = [0, 1, 2].map(|a| {
+            if w[a] == 0.0 {
+                f32::INFINITY
+            } else {
+                let boundary = v[a] as f32 + if w[a] > 0.0 { 1.0 } else { 0.0 };
+                (boundary - g0[a]) / w[a]
+            }
+        });
+        let delta = [0, 1, 2].map(|a| if w[a] == 0.0 { f32::INFINITY } else { 1.0 / w[a].abs() });
+        let mut here = self.label(v);
+        let mut sum = 0.0f32;
+        loop {
+            let a = if next[0] <= next[1] && next[0] <= next[2] {
+                0
+            } else if next[1] <= next[2] {
+                1
+            } else {
+                2
+            };
+            let t = next[a];
+            if t > t1 {
+                break;
+            }
+            v[a] += step[a];
+            if v[a] < p.voxel_lo[a] || v[a] > p.voxel_hi[a] {
+                break;
+            }
+            let there = self.label(v);
+            if t > 0.0 && ((here == p.from && there == p.to) || (here == p.to && there == p.from)) {
+                let d = t * self.voxel;
+                sum += d * d * delta[a];
+            }
+            here = there;
+            next[a] += delta[a];
+        }
+        sum / p.area
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::guided::analysis::{guide_for, GuideSettings};
+    use crate::sampling::Rng;
+
+    fn two_rooms() -> (Scene, Regions) {
+        let scene = crate::scene::builtin::two_rooms();
+        let (guide, _) = guide_for(&scene, &GuideSettings { resolution: 48 }).expect("analyses");
+        (scene, Regions::new(guide))
+    }
+
+    /// The portal density integrates to one over the directions that reach the portal:
+    /// estimated by drawing directions uniformly on the sphere, E[p/p_uniform] = 1 (each
+    /// direction crossing k faces counts all k, which a density of the first face alone
+    /// would not: there it falls short).
+    #[test]
+    fn portal_densities_integrate_to_one() {
+        let (_, r) = two_rooms();
+        assert!(!r.portals.is_empty());
+        let mut rng = Rng::new(3, 0, 0);
+        for k in (0..r.portals.len()).take(6) {
+            let p = &r.portals[k];
+            // From a point of one of its regions, two voxels from its centroid.
+            let x = p.centroid + (r.centroids[p.from as usize] - p.centroid).normalize() * (2.0 * r.voxel);
+            let n = 200_000;
+            let mut sum = 0.0f64;
+            let mut sq = 0.0f64;
+            for _ in 0..n {
+                let u = rng.next_2d();
+                let z = 1.0 - 2.0 * u.x;
+                let s = (1.0 - z * z).max(0.0).sqrt();
+                let phi = 2.0 * std::f32::consts::PI * u.y;
+                let w = vec3(s * phi.cos(), s * phi.sin(), z);
+                let f = (r.portal_pdf(k, x, w) * 4.0 * std::f32::consts::PI) as f64;
+                sum += f;
+                sq += f * f;
+            }
+            let mean = sum / n as f64;
+            let se = ((sq / n as f64 - mean * mean) / n as f64).sqrt();
+            println!("portal {k}: {} faces, ∫p dω = {mean:.4} ± {se:.4}", p.faces.len());
+            assert!((mean - 1.0).abs() < 4.0 * se + 1e-3, "portal {k}: ∫p dω = {mean} ± {se}");
+        }
+    }
+
+    /// Each direction drawn towards a point on the portal has a positive density, and the
+    /// mean of 1/p over such draws is the solid angle the portal covers (E[1/p] = Ω): the
+    /// same Ω as the uniform-sphere estimate of the directions that cross it.
+    #[test]
+    fn drawn_directions_have_their_density() {
+        let (_, r) = two_rooms();
+        let mut rng = Rng::new(4, 0, 0);
+        let k = (0..r.portals.len()).max_by_key(|&k| r.portals[k].faces.len()).unwrap();
+        let p = &r.portals[k];
+        let x = p.centroid + (r.centroids[p.from as usize] - p.centroid).normalize() * (3.0 * r.voxel);
+        let n = 100_000;
+        let mut inv = 0.0f64;
+        for _ in 0..n {
+            let y = r.sample_portal(k, rng.next_f32(), [rng.next_f32(), rng.next_f32()]);
+            let w = (y - x).normalize();
+            let pdf = r.portal_pdf(k, x, w);
+            assert!(pdf > 0.0, "a drawn direction has density 0");
+            inv += 1.0 / pdf as f64;
+        }
+        let mut hits = 0u64;
+        let m = 400_000;
+        for _ in 0..m {
+            let u = rng.next_2d();
+            let z = 1.0 - 2.0 * u.x;
+            let s = (1.0 - z * z).max(0.0).sqrt();
+            let phi = 2.0 * std::f32::consts::PI * u.y;
+            if r.portal_pdf(k, x, vec3(s * phi.cos(), s * phi.sin(), z)) > 0.0 {
+                hits += 1;
+            }
+        }
+        let omega_draws = inv / n as f64;
+        let omega_sphere = 4.0 * std::f64::consts::PI * hits as f64 / m as f64;
+        let se = 4.0 * std::f64::consts::PI * ((hits as f64 / m as f64) / m as f64).sqrt();
+        println!("portal {k}: Ω = {omega_draws:.5} (draws) vs {omega_sphere:.5} ± {se:.5} (sphere)");
+        assert!((omega_draws - omega_sphere).abs() < 4.0 * se + 0.01 * omega_sphere);
+    }
+
+    /// The blend's weights sum to one and change little between nearby points.
+    #[test]
+    fn blends_are_continuous() {
+        let (scene, r) = two_rooms();
+        let mut rng = Rng::new(5, 0, 0);
+        let mut jumps = 0;
+        let mut checked = 0;
+        for _ in 0..2000 {
+            let (px, py) = (rng.next_f32() * 15.0, rng.next_f32() * 15.0);
+            let cam = &scene.camera;
+            let ray = cam.generate_ray(crate::math::vec2(px, py), crate::math::vec2(0.5, 0.5));
+            let Some(si) = scene.intersect(&ray) else { continue };
+            let a = r.blend_at(si.p, si.ng, si.wi, 1.5);
+            let b = r.blend_at(si.p + si.frame.s * (0.02 * r.voxel), si.ng, si.wi, 1.5);
+            if a.is_empty() || b.is_empty() {
+                continue;
+            }
+            checked += 1;
+            let total: f32 = a.iter().map(|(_, w)| w).sum();
+            assert!((total - 1.0).abs() < 1e-4);
+            let weight = |bl: &RegionBlend, reg: u32| bl.iter().find(|(r, _)| *r == reg).map_or(0.0, |(_, w)| w);
+            let diff: f32 = a.iter().map(|(reg, w)| (w - weight(&b, reg)).abs()).sum();
+            if diff > 0.2 {
+                jumps += 1;
+            }
+        }
+        assert!(checked > 100, "{checked}");
+        assert!(jumps * 100 <= checked, "{jumps} jumps in {checked}");
+    }
+}
