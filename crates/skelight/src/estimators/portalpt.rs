@@ -25,7 +25,7 @@ use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 use std::sync::Arc;
 
-use crate::guided::analysis::{prepare_guide, GuideSettings};
+use crate::guided::analysis::{prepare_guide, unguided_because, GuideSettings};
 use crate::guided::pictures::{label_picture, value_picture};
 use crate::guided::regions::{RegionBlend, Regions, MAX_BLEND};
 use crate::integrator::diagnostics::DebugFile;
@@ -236,12 +236,8 @@ impl Integrator for PortalPathTracer {
     fn prepare(&mut self, scene: &Scene) -> Result<Preparation, PrepareError> {
         self.prepared = None;
         let mut prep = Preparation::default();
-        if self.c_portal == 0.0 {
-            prep.notes.push("c_portal = 0: plain path tracing, no analysis".into());
-            return Ok(prep);
-        }
-        if scene.lights.is_empty() {
-            prep.notes.push("the scene has no lights: plain path tracing".into());
+        if let Some(why) = unguided_because(scene, "c_portal", self.c_portal) {
+            prep.notes.push(why);
             return Ok(prep);
         }
         let guide = prepare_guide(scene, &GuideSettings { resolution: self.resolution }, &mut prep)?;

@@ -15,6 +15,7 @@
 
 use std::sync::Arc;
 
+use crate::guided::analysis::unguided_because;
 use crate::guided::directions::{mixture_pdf, mixture_pdfs, sample_mixture, Directions, Target};
 use crate::guided::pictures::{guidance_pictures, ImportanceFile};
 use crate::guided::{Guidance, GuidanceSettings, SkeletonGuide};
@@ -225,12 +226,8 @@ impl Integrator for SkeletonPathTracer {
     fn prepare(&mut self, scene: &Scene) -> Result<Preparation, PrepareError> {
         self.prepared = None;
         let mut prep = Preparation::default();
-        if self.c_skel == 0.0 {
-            prep.notes.push("c_skel = 0: plain path tracing, no analysis".into());
-            return Ok(prep);
-        }
-        if scene.lights.is_empty() {
-            prep.notes.push("the scene has no lights: plain path tracing".into());
+        if let Some(why) = unguided_because(scene, "c_skel", self.c_skel) {
+            prep.notes.push(why);
             return Ok(prep);
         }
         let Some(Guidance { guide, directions, importance }) = Guidance::prepare(scene, &self.settings, &mut prep)?

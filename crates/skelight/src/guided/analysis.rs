@@ -161,6 +161,19 @@ pub fn prepare_guide(
     Ok(guide)
 }
 
+/// Why a guided path tracer renders as plain path tracing, without an analysis, if it does:
+/// its probability `c` of drawing from the guide (the parameter `name`) is 0, or the scene
+/// has no light to guide towards.
+pub fn unguided_because(scene: &Scene, name: &str, c: f32) -> Option<String> {
+    if c == 0.0 {
+        Some(format!("{name} = 0: plain path tracing, no analysis"))
+    } else if scene.lights.is_empty() {
+        Some("the scene has no lights: plain path tracing".into())
+    } else {
+        None
+    }
+}
+
 /// A hash of everything the analysis reads: the triangles and the settings.
 fn cache_key(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
