@@ -338,6 +338,12 @@ fn img_tag(img: &Image, alt: &str) -> Result<String> {
     Ok(format!(r#"<img alt="{alt}" src="data:image/png;base64,{}"/>"#, base64(&png)))
 }
 
+/// A series' name as a file name: every character other than letters, digits and `.:=,+-`
+/// becomes `_` (a parameter may be a path: `portalpt:portals=scenes/portals/door.json`).
+fn file_stem(name: &str) -> String {
+    name.chars().map(|c| if c.is_ascii_alphanumeric() || ".:=,+-".contains(c) { c } else { '_' }).collect()
+}
+
 /// Writes every output of the study into `dir`.
 pub fn write_report(study: &Study, reference: &Image, dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -349,13 +355,14 @@ pub fn write_report(study: &Study, reference: &Image, dir: &Path) -> Result<()> 
     plot_png(&study.series).save_png(&dir.join("error_vs_time.png"), 0.0)?;
     let mut errors = Vec::new();
     for s in &study.series {
+        let stem = file_stem(&s.name);
         s.image.save_exr_with(
-            &dir.join(format!("{}.exr", s.name)),
+            &dir.join(format!("{stem}.exr")),
             &[("skelight.spp", s.points.last().map(|p| p.spp as f64).unwrap_or(0.0))],
         )?;
-        s.image.save_png(&dir.join(format!("{}.png", s.name)), 0.0)?;
+        s.image.save_png(&dir.join(format!("{stem}.png")), 0.0)?;
         let e = eval::error_image(&s.image, reference, 0.5)?;
-        e.save_png(&dir.join(format!("{}_error.png", s.name)), 0.0)?;
+        e.save_png(&dir.join(format!("{stem}_error.png")), 0.0)?;
         errors.push(e);
     }
     let sbs = side_by_side(&study.series, reference);
@@ -418,4 +425,16 @@ pub fn write_report(study: &Study, reference: &Image, dir: &Path) -> Result<()> 
     }
     html.push_str("</body></html>\n");
     write("report.html", &html)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::file_stem;
+
+    /// A parameter holding a path must not put the series' files in folders of that path.
+    #[test]
+    fn series_names_become_file_names() {
+        assert_eq!(file_stem("portalpt:portals=/tmp/p/door.json"), "portalpt:portals=_tmp_p_door.json");
+        assert_eq!(file_stem("skelpt:c_skel=0.25:adaptive=false"), "skelpt:c_skel=0.25:adaptive=false");
+    }
 }

@@ -19,6 +19,19 @@
 //! whole mixture, not the drawn region's part. In a lit region (and a region with no route)
 //! p_R is absent: there BSDF sampling and next-event estimation alone, as the thesis says.
 //!
+//! **Named portals.** With `portals=FILE` the portals are the user's (a door's opening, the gap
+//! of a door left ajar; [`NamedPortals`]): at x, a direction is drawn within the solid angle
+//! of a portal triangle on the side x reflects into, triangles picked by their solid angle,
+//! and its density is exact over every triangle its line crosses. No analysis is run.
+//!
+//! **Learned selection.** Where portals help and where they waste samples differs over the
+//! scene (a point in the lit room, a point facing away from the door). With `learn` (the
+//! default), c is learned per cell of a grid over the scene and per side a surface faces,
+//! pass by pass, among [`SELECTIONS`] (0 included: portal sampling off), by the estimated
+//! second moment of each candidate ([`Moments`]); fixed within a pass, so every pass is
+//! unbiased. The value a point uses is interpolated between cell centres (continuous over
+//! surfaces); `c_portal` is the first pass's and where a cell has seen too few paths.
+//!
 //! The face-irradiance strategy (§10.4.2) is not built yet (`strategy` offers `paths`).
 
 use std::cmp::Ordering;
@@ -26,14 +39,16 @@ use std::collections::BinaryHeap;
 use std::sync::Arc;
 
 use crate::guided::analysis::{prepare_guide, unguided_because, GuideSettings};
+use crate::guided::learning::{Moments, SelectionCells, TileMoments};
+use crate::guided::named_portals::{NamedPortals, NamedVertex};
 use crate::guided::pictures::{label_picture, value_picture};
 use crate::guided::regions::{RegionBlend, Regions, MAX_BLEND};
 use crate::integrator::diagnostics::DebugFile;
 use crate::integrator::params::{ParamKind, ParamSpec, Params};
-use crate::integrator::{Integrator, Preparation, PrepareError, SampleContext};
+use crate::integrator::{Integrator, Preparation, PrepareError, SampleContext, Scratch};
 use crate::material::Bsdf;
 use crate::math::{vec2, Vec3};
-use crate::paths::walk::{guidable, trace, DirectionGuide, GuidedVertex, Unguided};
+use crate::paths::walk::{guidable, trace, DirectionGuide, GuidedStep, GuidedVertex, Unguided};
 use crate::sampling::Rng;
 use crate::scene::{Scene, SurfaceInteraction};
 
@@ -49,9 +64,30 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "c_portal",
         kind: ParamKind::Float { min: 0.0, max: 0.99 },
-        default: "0.5",
+        default: "0.25",
         doc: "probability of drawing a direction through a portal rather than from the BSDF, where a region \
-              has a route; 0 is pt; below 1, or directions no portal reaches would never be drawn (a bias)",
+              has a route (with learn: in the first pass, and where too few paths were seen); 0 is pt; below 1, \
+              or directions no portal reaches would never be drawn (a bias)",
+    },
+    ParamSpec {
+        name: "portals",
+        kind: ParamKind::Path,
+        default: "",
+        doc: "portals named by the user instead of the analysis' (a door's opening): a JSON file of quads or an \
+              OBJ of triangles, in the scene's world space (guided/named_portals.rs documents the format)",
+    },
+    ParamSpec {
+        name: "learn",
+        kind: ParamKind::Bool,
+        default: "true",
+        doc: "learn c per cell of space and surface side, pass by pass, among 0, 0.1, 0.25 and 0.5 (fixed within \
+              a pass, so unbiased); false keeps c_portal everywhere",
+    },
+    ParamSpec {
+        name: "cells",
+        kind: ParamKind::Int { min: 1, max: 128 },
+        default: "16",
+        doc: "cells along the scene's longest side over which learn chooses c",
     },
     ParamSpec {
         name: "blend",
@@ -63,20 +99,48 @@ pub const PARAMS: &[ParamSpec] = &[
     crate::integrator::params::SKELETON_RESOLUTION,
 ];
 
+/// The candidate selection probabilities the learned mode chooses among; 0 turns portal
+/// sampling off where it does harm.
+pub const SELECTIONS: [f32; 4] = [0.0, 0.1, 0.25, 0.5];
+
 pub struct PortalPathTracer {
     pub c_portal: f32,
     pub blend: f32,
     pub resolution: usize,
+    pub portals: Option<std::path::PathBuf>,
+    pub learn: bool,
+    pub cells: usize,
     prepared: Option<Prepared>,
+}
+
+/// Where the portals come from.
+enum Source {
+    /// The analysis' regions and portals, routed towards the lit regions.
+    Analysis {
+        regions: Regions,
+        /// Per region, the portal towards its next region on the way to a lit one (`None`
+        /// in a lit region and where no route exists).
+        route: Vec<Option<usize>>,
+        lit: Vec<bool>,
+    },
+    /// The user's.
+    Named(NamedPortals),
 }
 
 /// What sampling reads.
 struct Prepared {
-    regions: Regions,
-    /// Per region, the portal towards its next region on the way to a lit one (`None` in a
-    /// lit region and where no route exists).
-    route: Vec<Option<usize>>,
-    lit: Vec<bool>,
+    source: Source,
+    cells: SelectionCells,
+    /// Per cell key, the c of the current pass.
+    selection: Vec<f32>,
+    /// What learning has observed so far.
+    moments: Moments<{ SELECTIONS.len() }>,
+}
+
+/// A tile's learning memory: its moments and one path's guided steps.
+struct Learning {
+    moments: TileMoments<{ SELECTIONS.len() }>,
+    steps: Vec<GuidedStep>,
 }
 
 impl PortalPathTracer {
@@ -85,6 +149,9 @@ impl PortalPathTracer {
             c_portal: p.float("c_portal") as f32,
             blend: p.float("blend") as f32,
             resolution: p.int("resolution") as usize,
+            portals: p.path("portals"),
+            learn: p.bool("learn"),
+            cells: p.int("cells") as usize,
             prepared: None,
         }
     }
@@ -139,65 +206,128 @@ fn routes(regions: &Regions, graph: &[Vec<(u32, usize)>], lit: &[bool]) -> Vec<O
 /// The portals' offer at the vertices of a prepared render.
 struct PortalGuidance<'a> {
     prepared: &'a Prepared,
-    c_portal: f32,
     blend: f32,
+    /// Whether paths are recorded for learning: then a vertex whose c is 0 still offers its
+    /// (never sampled) distribution, so that its steps keep being observed.
+    learning: bool,
 }
 
-/// The portal mixture at one vertex: portals and their weights (summing to 1).
+/// The portals' distribution at one vertex.
+enum Offer<'a> {
+    /// The analysis' portals of the vertex's blended regions, with their weights (summing
+    /// to 1).
+    Regions {
+        regions: &'a Regions,
+        x: Vec3,
+        parts: [(usize, f32); MAX_BLEND],
+        len: usize,
+    },
+    Named(NamedVertex<'a>),
+}
+
+impl Offer<'_> {
+    #[inline]
+    fn pdf(&self, wo: Vec3) -> f32 {
+        match self {
+            Offer::Regions { regions, x, parts, len } => {
+                parts[..*len].iter().map(|&(k, w)| w * regions.portal_pdf(k, *x, wo)).sum()
+            }
+            Offer::Named(v) => v.pdf(wo),
+        }
+    }
+}
+
+/// The portal mixture at one vertex, and the probability of drawing from it.
 pub struct PortalVertex<'a> {
-    regions: &'a Regions,
-    x: Vec3,
-    parts: [(usize, f32); MAX_BLEND],
-    len: usize,
+    offer: Offer<'a>,
     selection: f32,
+    key: u32,
 }
 
 impl GuidedVertex for PortalVertex<'_> {
+    #[inline]
+    fn key(&self) -> u32 {
+        self.key
+    }
     #[inline]
     fn selection(&self) -> f32 {
         self.selection
     }
     #[inline]
     fn pdf(&self, wo: Vec3) -> f32 {
-        self.parts[..self.len].iter().map(|&(k, w)| w * self.regions.portal_pdf(k, self.x, wo)).sum()
+        self.offer.pdf(wo)
     }
     #[inline]
     fn sample(&self, rng: &mut Rng) -> Vec3 {
-        let mut pick = rng.next_f32();
-        let mut chosen = self.parts[self.len - 1].0;
-        for &(k, w) in &self.parts[..self.len] {
-            if pick < w {
-                chosen = k;
-                break;
+        match &self.offer {
+            Offer::Regions { regions, x, parts, len } => {
+                let mut pick = rng.next_f32();
+                let mut chosen = parts[len - 1].0;
+                for &(k, w) in &parts[..*len] {
+                    if pick < w {
+                        chosen = k;
+                        break;
+                    }
+                    pick -= w;
+                }
+                let y = regions.sample_portal(chosen, rng.next_f32(), [rng.next_f32(), rng.next_f32()]);
+                (y - *x).normalize()
             }
-            pick -= w;
+            Offer::Named(v) => v.sample(rng),
         }
-        let y = self.regions.sample_portal(chosen, rng.next_f32(), [rng.next_f32(), rng.next_f32()]);
-        (y - self.x).normalize()
+    }
+}
+
+/// The portal mixture for a region blend: each routed region's portal with its weight, and
+/// the routed regions' total weight.
+fn mixture(route: &[Option<usize>], blend: &RegionBlend) -> ([(usize, f32); MAX_BLEND], usize, f32) {
+    let mut parts = [(0usize, 0.0f32); MAX_BLEND];
+    let mut len = 0;
+    let mut routed = 0.0;
+    for (r, w) in blend.iter() {
+        let Some(portal) = route.get(r as usize).copied().flatten() else { continue };
+        routed += w;
+        if let Some(part) = parts[..len].iter_mut().find(|(k, _)| *k == portal) {
+            part.1 += w;
+        } else {
+            parts[len] = (portal, w);
+            len += 1;
+        }
+    }
+    for part in &mut parts[..len] {
+        part.1 /= routed;
+    }
+    (parts, len, routed)
+}
+
+/// The side a surface point reflects into: its geometric normal turned towards `wi`.
+#[inline]
+fn side(ng: Vec3, wi: Vec3) -> Vec3 {
+    if ng.dot(wi) >= 0.0 {
+        ng
+    } else {
+        -ng
     }
 }
 
 impl PortalGuidance<'_> {
-    /// The portal mixture at point `p` for a region blend: each routed region's portal with
-    /// its weight, and the routed regions' total weight.
-    fn mixture(&self, blend: &RegionBlend) -> ([(usize, f32); MAX_BLEND], usize, f32) {
-        let mut parts = [(0usize, 0.0f32); MAX_BLEND];
-        let mut len = 0;
-        let mut routed = 0.0;
-        for (r, w) in blend.iter() {
-            let Some(portal) = self.prepared.route.get(r as usize).copied().flatten() else { continue };
-            routed += w;
-            if let Some(part) = parts[..len].iter_mut().find(|(k, _)| *k == portal) {
-                part.1 += w;
-            } else {
-                parts[len] = (portal, w);
-                len += 1;
+    /// The portals' distribution at point `p` (geometric normal `ng`, seen from `wi`) and
+    /// the share of it that portals may draw (the routed regions' weight; 1 for named
+    /// portals); `None` where no portal is offered.
+    fn offer(&self, p: Vec3, ng: Vec3, wi: Vec3) -> Option<(Offer<'_>, f32)> {
+        match &self.prepared.source {
+            Source::Analysis { regions, route, .. } => {
+                let blend = regions.blend_at(p, ng, wi, self.blend);
+                let (parts, len, routed) = mixture(route, &blend);
+                (len > 0).then_some((Offer::Regions { regions, x: p, parts, len }, routed))
             }
+            Source::Named(portals) => portals.at(p, side(ng, wi)).map(|v| (Offer::Named(v), 1.0)),
         }
-        for part in &mut parts[..len] {
-            part.1 /= routed;
-        }
-        (parts, len, routed)
+    }
+
+    /// The learned (or fixed) c at `p` for a surface facing `side`.
+    fn c_at(&self, p: Vec3, side: Vec3) -> f32 {
+        self.prepared.cells.interpolate(&self.prepared.selection, p, side)
     }
 }
 
@@ -211,36 +341,41 @@ impl<'g> DirectionGuide for PortalGuidance<'g> {
         if !guidable(si, bsdf) {
             return None;
         }
-        let regions = &self.prepared.regions;
-        let blend = regions.blend_at(si.p, si.ng, si.wi, self.blend);
-        let (parts, len, routed) = self.mixture(&blend);
-        if len == 0 {
+        let facing = side(si.ng, si.wi);
+        let c = self.c_at(si.p, facing);
+        if c <= 0.0 && !self.learning {
             return None;
         }
-        Some(PortalVertex { regions, x: si.p, parts, len, selection: self.c_portal * routed })
+        let (offer, routed) = self.offer(si.p, si.ng, si.wi)?;
+        let key = self.prepared.cells.key(si.p, facing);
+        Some(PortalVertex { offer, selection: c * routed, key })
     }
 }
 
-impl Integrator for PortalPathTracer {
-    fn name(&self) -> &'static str {
-        "portalpt"
+/// Adds one finished path's guided steps to the moments of every candidate c: `total` is
+/// the path's radiance.
+fn observe(guidance: &PortalGuidance<'_>, total: crate::color::Rgb, learning: &mut Learning) {
+    for step in &learning.steps {
+        let h = step.integrand(total) as f64;
+        learning.moments.observe(step.key, h, step.pdf as f64, || {
+            let (guide_pdf, routed) =
+                guidance.offer(step.x, step.normal, step.wi).map_or((0.0, 0.0), |(o, r)| (o.pdf(step.wo), r));
+            SELECTIONS.map(|c| {
+                let c = c * routed;
+                ((1.0 - c) * step.bsdf_pdf + c * guide_pdf) as f64
+            })
+        });
+    }
+}
+
+impl PortalPathTracer {
+    fn guidance<'a>(&self, prepared: &'a Prepared) -> PortalGuidance<'a> {
+        PortalGuidance { prepared, blend: self.blend, learning: self.learn }
     }
 
-    fn describe(&self) -> String {
-        format!(
-            "portalpt strategy=paths c_portal={} blend={} resolution={}",
-            self.c_portal, self.blend, self.resolution
-        )
-    }
-
-    fn prepare(&mut self, scene: &Scene) -> Result<Preparation, PrepareError> {
-        self.prepared = None;
-        let mut prep = Preparation::default();
-        if let Some(why) = unguided_because(scene, "c_portal", self.c_portal) {
-            prep.notes.push(why);
-            return Ok(prep);
-        }
-        let guide = prepare_guide(scene, &GuideSettings { resolution: self.resolution }, &mut prep)?;
+    /// The analysis' regions, portals and routes.
+    fn analysed(&self, scene: &Scene, prep: &mut Preparation) -> Result<Source, PrepareError> {
+        let guide = prepare_guide(scene, &GuideSettings { resolution: self.resolution }, prep)?;
         let clock = std::time::Instant::now();
         let graph = guide.region_graph();
         let regions = Regions::new(Arc::clone(&guide));
@@ -257,8 +392,59 @@ impl Integrator for PortalPathTracer {
         if routed == 0 {
             prep.notes.push("no region has a route to a lit one: plain path tracing".into());
         }
-        self.prepared = Some(Prepared { regions, route, lit });
+        Ok(Source::Analysis { regions, route, lit })
+    }
+}
+
+impl Integrator for PortalPathTracer {
+    fn name(&self) -> &'static str {
+        "portalpt"
+    }
+
+    fn describe(&self) -> String {
+        let portals = self.portals.as_ref().map_or(String::new(), |p| format!(" portals={}", p.display()));
+        format!(
+            "portalpt strategy=paths c_portal={} blend={} resolution={}{portals} learn={} cells={}",
+            self.c_portal, self.blend, self.resolution, self.learn, self.cells
+        )
+    }
+
+    fn prepare(&mut self, scene: &Scene) -> Result<Preparation, PrepareError> {
+        self.prepared = None;
+        let mut prep = Preparation::default();
+        if let Some(why) = unguided_because(scene, "c_portal", self.c_portal) {
+            prep.notes.push(why);
+            return Ok(prep);
+        }
+        let source = match &self.portals {
+            Some(path) => {
+                let named = NamedPortals::load(path).map_err(PrepareError)?;
+                prep.notes.push(format!(
+                    "{} named portals ({} triangles) from {}",
+                    named.names.len(),
+                    named.triangles.len(),
+                    path.display()
+                ));
+                Source::Named(named)
+            }
+            None => self.analysed(scene, &mut prep)?,
+        };
+        let cells = SelectionCells::new(scene.bounds(), self.cells);
+        let keys = cells.keys();
+        self.prepared = Some(Prepared {
+            source,
+            cells,
+            selection: vec![self.c_portal; keys],
+            moments: Moments::new(if self.learn { keys } else { 0 }),
+        });
         Ok(prep)
+    }
+
+    fn new_scratch(&self) -> Scratch {
+        match &self.prepared {
+            Some(_) if self.learn => Scratch::new(Learning { moments: TileMoments::default(), steps: Vec::new() }),
+            _ => Scratch::none(),
+        }
     }
 
     fn sample(&self, scene: &Scene, x: usize, y: usize, rng: &mut Rng, cx: &mut SampleContext) {
@@ -266,42 +452,70 @@ impl Integrator for PortalPathTracer {
         let ray = scene.camera.generate_ray(pos, rng.next_2d());
         let max_depth = scene.settings.max_depth;
         let l = match &self.prepared {
-            Some(p) => {
-                let g = PortalGuidance { prepared: p, c_portal: self.c_portal, blend: self.blend };
-                trace(scene, max_depth, ray, rng, &g, None)
+            Some(p) if self.learn => {
+                let g = self.guidance(p);
+                let learning = cx.scratch.get::<Learning>();
+                learning.steps.clear();
+                let l = trace(scene, max_depth, ray, rng, &g, Some(&mut learning.steps));
+                observe(&g, l, learning);
+                l
             }
+            Some(p) => trace(scene, max_depth, ray, rng, &self.guidance(p), None),
             None => trace(scene, max_depth, ray, rng, &Unguided, None),
         };
         cx.tile.add(pos, l);
     }
 
-    /// `regions.png` (each primary hit's heaviest region, as false colours; lit regions are
-    /// the sampler's destinations) and `portal_selection.png` (c(x) at each primary hit, the
-    /// probability of drawing through a portal there, over c_portal: white where every
-    /// neighbouring region has a route).
+    /// `portal_selection.png` (the probability of drawing through a portal at each primary
+    /// hit, over 0.5, the largest candidate: white where half the directions go through a
+    /// portal); with the analysis' portals, `regions.png` (each primary hit's heaviest
+    /// region, as false colours; lit regions are the sampler's destinations); `routes.json`.
     fn debug_files(&self, scene: &Scene) -> Vec<DebugFile> {
         let Some(p) = &self.prepared else { return Vec::new() };
-        let guidance = PortalGuidance { prepared: p, c_portal: self.c_portal, blend: self.blend };
-        let regions = label_picture(scene, |si| {
-            let blend = p.regions.blend_at(si.p, si.ng, si.wi, self.blend);
-            blend.iter().max_by(|a, b| a.1.total_cmp(&b.1)).map(|(r, _)| r)
-        });
+        let guidance = PortalGuidance { prepared: p, blend: self.blend, learning: false };
         let selection = value_picture(scene, |si| {
-            let blend = p.regions.blend_at(si.p, si.ng, si.wi, self.blend);
-            guidance.mixture(&blend).2
+            let share = guidance.offer(si.p, si.ng, si.wi).map_or(0.0, |(_, r)| r);
+            guidance.c_at(si.p, side(si.ng, si.wi)) * share / SELECTIONS[SELECTIONS.len() - 1]
         });
-        let lit: Vec<usize> = p.lit.iter().enumerate().filter(|(_, &l)| l).map(|(r, _)| r).collect();
-        let routes = serde_json::json!({
-            "regions": p.regions.count,
-            "portals": p.regions.portals.len(),
-            "lit_regions": lit,
-            "routed_regions": p.route.iter().filter(|r| r.is_some()).count(),
-        });
-        let text = serde_json::to_string_pretty(&routes).unwrap_or_default() + "\n";
-        vec![
-            DebugFile::Png { name: "regions.png".into(), image: regions },
-            DebugFile::Png { name: "portal_selection.png".into(), image: selection },
-            DebugFile::Text { name: "routes.json".into(), text },
-        ]
+        let mut files = vec![DebugFile::Png { name: "portal_selection.png".into(), image: selection }];
+        let learned = p.moments.counts.iter().filter(|&&n| n >= crate::guided::learning::MIN_OBSERVATIONS).count();
+        let mut summary = serde_json::json!({ "cells_learned": learned });
+        match &p.source {
+            Source::Analysis { regions, route, lit } => {
+                let picture = label_picture(scene, |si| {
+                    let blend = regions.blend_at(si.p, si.ng, si.wi, self.blend);
+                    blend.iter().max_by(|a, b| a.1.total_cmp(&b.1)).map(|(r, _)| r)
+                });
+                files.insert(0, DebugFile::Png { name: "regions.png".into(), image: picture });
+                let lit: Vec<usize> = lit.iter().enumerate().filter(|(_, &l)| l).map(|(r, _)| r).collect();
+                summary["regions"] = regions.count.into();
+                summary["portals"] = regions.portals.len().into();
+                summary["lit_regions"] = lit.into();
+                summary["routed_regions"] = route.iter().filter(|r| r.is_some()).count().into();
+            }
+            Source::Named(named) => {
+                summary["named_portals"] = named.names.clone().into();
+                summary["triangles"] = named.triangles.len().into();
+            }
+        }
+        let text = serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n";
+        files.push(DebugFile::Text { name: "routes.json".into(), text });
+        files
+    }
+
+    fn learns_across_passes(&self) -> bool {
+        self.learn
+    }
+
+    fn finish_pass(&mut self, _scene: &Scene, scratches: &mut [Scratch]) {
+        let Some(p) = self.prepared.as_mut().filter(|_| self.learn) else { return };
+        for s in scratches.iter_mut() {
+            p.moments.add(&s.get::<Learning>().moments);
+        }
+        for (key, c) in p.selection.iter_mut().enumerate() {
+            if let Some(best) = p.moments.best(key) {
+                *c = SELECTIONS[best];
+            }
+        }
     }
 }

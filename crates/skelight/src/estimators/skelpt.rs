@@ -17,6 +17,7 @@ use std::sync::Arc;
 
 use crate::guided::analysis::unguided_because;
 use crate::guided::directions::{mixture_pdf, mixture_pdfs, sample_mixture, Directions, Target};
+use crate::guided::learning::{Moments, TileMoments};
 use crate::guided::pictures::{guidance_pictures, ImportanceFile};
 use crate::guided::{Guidance, GuidanceSettings, SkeletonGuide};
 use crate::integrator::diagnostics::DebugFile;
@@ -76,37 +77,12 @@ pub const PARAMS: &[ParamSpec] = &[
 const STRENGTHS: [f32; 4] = [1.0, 4.0, 16.0, 64.0];
 const SELECTIONS: [f32; 4] = [0.0, 0.25, 0.5, 0.75];
 const CANDIDATES: usize = STRENGTHS.len() * SELECTIONS.len();
-/// Directions a node must have seen before its own choice replaces the defaults.
-const MIN_OBSERVATIONS: u64 = 64;
-
-/// Per node, the estimated second moment of the one-sample estimator under every
-/// candidate, ∫ h²/p_θ ≈ mean of h²/(p_θ·p_used) over directions drawn with p_used (h =
-/// f·|cos|·L), and how many directions it rests on.
-#[derive(Clone, Default)]
-struct Moments {
-    sums: Vec<[f64; CANDIDATES]>,
-    counts: Vec<u64>,
-}
-
-impl Moments {
-    fn new(nodes: usize) -> Moments {
-        Moments { sums: vec![[0.0; CANDIDATES]; nodes], counts: vec![0; nodes] }
-    }
-    fn add(&mut self, other: &Moments) {
-        for (a, b) in self.sums.iter_mut().zip(&other.sums) {
-            for (x, y) in a.iter_mut().zip(b) {
-                *x += y;
-            }
-        }
-        for (a, b) in self.counts.iter_mut().zip(&other.counts) {
-            *a = a.saturating_add(*b);
-        }
-    }
-}
+/// Per node, the estimated second moment under every candidate (see [`Moments`]).
+type NodeMoments = Moments<CANDIDATES>;
 
 /// A tile's learning memory: its moments and one path's guided steps.
 struct Learning {
-    moments: Moments,
+    moments: TileMoments<CANDIDATES>,
     steps: Vec<GuidedStep>,
 }
 
@@ -128,7 +104,7 @@ struct Prepared {
     /// Per node, the strength and c_skel of the current pass.
     node_params: Vec<(f32, f32)>,
     /// What the adaptive mode has observed so far.
-    moments: Moments,
+    moments: NodeMoments,
 }
 
 impl SkeletonPathTracer {
@@ -240,16 +216,14 @@ impl Integrator for SkeletonPathTracer {
             directions,
             importance,
             node_params: vec![(self.strength, self.c_skel); nodes],
-            moments: Moments::new(if self.adaptive { nodes } else { 0 }),
+            moments: NodeMoments::new(if self.adaptive { nodes } else { 0 }),
         });
         Ok(prep)
     }
 
     fn new_scratch(&self) -> Scratch {
         match &self.prepared {
-            Some(p) if self.adaptive => {
-                Scratch::new(Learning { moments: Moments::new(p.node_params.len()), steps: Vec::new() })
-            }
+            Some(p) if self.adaptive => Scratch::new(Learning { moments: TileMoments::default(), steps: Vec::new() }),
             _ => Scratch::none(),
         }
     }
@@ -303,12 +277,9 @@ impl Integrator for SkeletonPathTracer {
             p.moments.add(&s.get::<Learning>().moments);
         }
         for (node, params) in p.node_params.iter_mut().enumerate() {
-            if p.moments.counts[node] < MIN_OBSERVATIONS {
-                continue;
+            if let Some(best) = p.moments.best(node) {
+                *params = (STRENGTHS[best / SELECTIONS.len()], SELECTIONS[best % SELECTIONS.len()]);
             }
-            let sums = &p.moments.sums[node];
-            let best = (0..CANDIDATES).min_by(|&a, &b| sums[a].total_cmp(&sums[b])).unwrap_or(0);
-            *params = (STRENGTHS[best / SELECTIONS.len()], SELECTIONS[best % SELECTIONS.len()]);
         }
     }
 }
@@ -318,20 +289,13 @@ impl Integrator for SkeletonPathTracer {
 fn observe(directions: &Directions, total: crate::color::Rgb, learning: &mut Learning) {
     for step in &learning.steps {
         let h = step.integrand(total) as f64;
-        let node = step.key as usize;
-        let targets = directions.at(step.key);
-        learning.moments.counts[node] += 1;
-        if h == 0.0 || !h.is_finite() {
-            continue;
-        }
-        let sums = &mut learning.moments.sums[node];
-        let skels = mixture_pdfs(targets, &STRENGTHS, step.x, step.normal, step.wo);
-        for (i, &skel) in skels.iter().enumerate() {
-            for (j, &c) in SELECTIONS.iter().enumerate() {
-                let p = ((1.0 - c) * step.bsdf_pdf + c * skel) as f64;
-                sums[i * SELECTIONS.len() + j] += if p > 0.0 { h * h / (p * step.pdf as f64) } else { f64::INFINITY };
-            }
-        }
+        learning.moments.observe(step.key, h, step.pdf as f64, || {
+            let skels = mixture_pdfs(directions.at(step.key), &STRENGTHS, step.x, step.normal, step.wo);
+            std::array::from_fn(|i| {
+                let c = SELECTIONS[i % SELECTIONS.len()];
+                ((1.0 - c) * step.bsdf_pdf + c * skels[i / SELECTIONS.len()]) as f64
+            })
+        });
     }
 }
 

@@ -10,6 +10,8 @@ pub mod analysis;
 pub mod directions;
 pub mod guidance;
 pub mod importance;
+pub mod learning;
+pub mod named_portals;
 pub mod pictures;
 pub mod regions;
 

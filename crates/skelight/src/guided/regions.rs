@@ -448,11 +448,7 @@ mod tests {
     }
 
     fn uniform_direction(rng: &mut Rng) -> Vec3 {
-        let u = rng.next_2d();
-        let z = 1.0 - 2.0 * u.x;
-        let s = (1.0 - z * z).max(0.0).sqrt();
-        let phi = 2.0 * std::f32::consts::PI * u.y;
-        vec3(s * phi.cos(), s * phi.sin(), z)
+        crate::sampling::uniform_sphere(rng.next_2d())
     }
 
     /// ∫ p dω over the sphere, estimated from `n` uniform directions, with its standard error.

@@ -16,6 +16,9 @@ pub enum ParamKind {
     Bool,
     /// One of these words.
     Choice(&'static [&'static str]),
+    /// A file's path (empty: none), read by the estimator when it prepares, which names the
+    /// file in its errors.
+    Path,
 }
 
 /// One parameter an estimator declares.
@@ -52,6 +55,7 @@ pub enum ParamValue {
     Float(f64),
     Bool(bool),
     Choice(&'static str),
+    Text(String),
 }
 
 impl fmt::Display for ParamValue {
@@ -61,6 +65,7 @@ impl fmt::Display for ParamValue {
             ParamValue::Float(v) => write!(f, "{v}"),
             ParamValue::Bool(v) => write!(f, "{v}"),
             ParamValue::Choice(v) => write!(f, "{v}"),
+            ParamValue::Text(v) => write!(f, "{v}"),
         }
     }
 }
@@ -106,6 +111,12 @@ impl ParamSpec {
                 .find(|w| **w == t)
                 .map(|w| ParamValue::Choice(w))
                 .ok_or_else(|| format!("'{text}' is not one of {}", words.join(", "))),
+            ParamKind::Path => {
+                if t.contains('\0') {
+                    return Err("a path cannot hold a NUL byte".into());
+                }
+                Ok(ParamValue::Text(t.to_string()))
+            }
         }
     }
 
@@ -116,6 +127,7 @@ impl ParamSpec {
             ParamKind::Float { min, max } => format!("number in [{min}, {max}]"),
             ParamKind::Bool => "true/false".into(),
             ParamKind::Choice(words) => words.join("|"),
+            ParamKind::Path => "a file's path (empty: none)".into(),
         }
     }
 }
@@ -188,6 +200,15 @@ impl Params {
         match self.get(name) {
             ParamValue::Bool(v) => *v,
             other => panic!("parameter {name} is {other:?}, not a boolean"),
+        }
+    }
+
+    /// A [`ParamKind::Path`] parameter: `None` when empty.
+    pub fn path(&self, name: &str) -> Option<std::path::PathBuf> {
+        match self.get(name) {
+            ParamValue::Text(v) if v.is_empty() => None,
+            ParamValue::Text(v) => Some(std::path::PathBuf::from(v)),
+            other => panic!("parameter {name} is {other:?}, not a path"),
         }
     }
 

@@ -117,6 +117,8 @@ pub struct GuidedStep {
     pub key: u32,
     pub x: Vec3,
     pub normal: Vec3,
+    /// Towards where the path came from (the vertex's `si.wi`).
+    pub wi: Vec3,
     pub wo: Vec3,
     /// f·|cos| towards `wo`.
     pub value: Rgb,
@@ -288,6 +290,7 @@ pub fn trace<G: DirectionGuide>(
                 key: g.key(),
                 x: si.p,
                 normal: si.ng,
+                wi: si.wi,
                 wo: next.wo,
                 value: next.value,
                 bsdf_pdf: next.bsdf_pdf,
