@@ -77,6 +77,13 @@ pub const PARAMS: &[ParamSpec] = &[
               OBJ of triangles, in the scene's world space (guided/named_portals.rs documents the format)",
     },
     ParamSpec {
+        name: "portal_sampling",
+        kind: ParamKind::Choice(&["solid_angle", "area"]),
+        default: "solid_angle",
+        doc: "with named portals: directions uniform within each triangle's solid angle, triangles picked by solid \
+              angle; area: points uniform by area on the portals (for comparison)",
+    },
+    ParamSpec {
         name: "learn",
         kind: ParamKind::Bool,
         default: "true",
@@ -108,6 +115,7 @@ pub struct PortalPathTracer {
     pub blend: f32,
     pub resolution: usize,
     pub portals: Option<std::path::PathBuf>,
+    pub by_area: bool,
     pub learn: bool,
     pub cells: usize,
     prepared: Option<Prepared>,
@@ -150,6 +158,7 @@ impl PortalPathTracer {
             blend: p.float("blend") as f32,
             resolution: p.int("resolution") as usize,
             portals: p.path("portals"),
+            by_area: p.choice("portal_sampling") == "area",
             learn: p.bool("learn"),
             cells: p.int("cells") as usize,
             prepared: None,
@@ -352,6 +361,32 @@ impl<'g> DirectionGuide for PortalGuidance<'g> {
     }
 }
 
+/// Directions drawn towards the named portals from each primary hit, [`VISIBILITY_DRAWS`] per
+/// pixel: the share that reaches a portal unoccluded, as a grey level (black where no portal
+/// is offered), and over every primary hit that offers one.
+fn portal_visibility(scene: &Scene, named: &NamedPortals) -> (crate::imageio::Image, f64) {
+    let (seen, offered) = (std::sync::atomic::AtomicU64::new(0), std::sync::atomic::AtomicU64::new(0));
+    let picture = value_picture(scene, |si| {
+        let Some(v) = named.at(si.p, side(si.ng, si.wi)) else { return 0.0 };
+        let mut rng = Rng::new(0, (si.p.x.to_bits() as u64) << 32 | si.p.y.to_bits() as u64, 0);
+        let clear = (0..VISIBILITY_DRAWS)
+            .filter(|_| {
+                let w = v.sample(&mut rng);
+                let Some(d) = v.distance_to_portal(w) else { return false };
+                scene.intersect(&si.spawn_ray(w)).is_none_or(|hit| hit.t >= d)
+            })
+            .count() as u64;
+        seen.fetch_add(clear, std::sync::atomic::Ordering::Relaxed);
+        offered.fetch_add(VISIBILITY_DRAWS as u64, std::sync::atomic::Ordering::Relaxed);
+        clear as f32 / VISIBILITY_DRAWS as f32
+    });
+    let offered = offered.into_inner();
+    (picture, if offered > 0 { seen.into_inner() as f64 / offered as f64 } else { 0.0 })
+}
+
+/// Portal directions per pixel in `portal_visibility.png`.
+const VISIBILITY_DRAWS: usize = 16;
+
 /// Adds one finished path's guided steps to the moments of every candidate c: `total` is
 /// the path's radiance.
 fn observe(guidance: &PortalGuidance<'_>, total: crate::color::Rgb, learning: &mut Learning) {
@@ -402,7 +437,10 @@ impl Integrator for PortalPathTracer {
     }
 
     fn describe(&self) -> String {
-        let portals = self.portals.as_ref().map_or(String::new(), |p| format!(" portals={}", p.display()));
+        let portals = self.portals.as_ref().map_or(String::new(), |p| {
+            let sampling = if self.by_area { "area" } else { "solid_angle" };
+            format!(" portals={} portal_sampling={sampling}", p.display())
+        });
         format!(
             "portalpt strategy=paths c_portal={} blend={} resolution={}{portals} learn={} cells={}",
             self.c_portal, self.blend, self.resolution, self.learn, self.cells
@@ -418,7 +456,8 @@ impl Integrator for PortalPathTracer {
         }
         let source = match &self.portals {
             Some(path) => {
-                let named = NamedPortals::load(path).map_err(PrepareError)?;
+                let mut named = NamedPortals::load(path).map_err(PrepareError)?;
+                named.by_area = self.by_area;
                 prep.notes.push(format!(
                     "{} named portals ({} triangles) from {}",
                     named.names.len(),
@@ -468,7 +507,8 @@ impl Integrator for PortalPathTracer {
 
     /// `portal_selection.png` (the probability of drawing through a portal at each primary
     /// hit, over 0.5, the largest candidate: white where half the directions go through a
-    /// portal); with the analysis' portals, `regions.png` (each primary hit's heaviest
+    /// portal); with named portals, `portal_visibility.png` (the share of portal directions
+    /// from each primary hit that reach the portal unoccluded); with the analysis' portals, `regions.png` (each primary hit's heaviest
     /// region, as false colours; lit regions are the sampler's destinations); `routes.json`.
     fn debug_files(&self, scene: &Scene) -> Vec<DebugFile> {
         let Some(p) = &self.prepared else { return Vec::new() };
@@ -496,6 +536,9 @@ impl Integrator for PortalPathTracer {
             Source::Named(named) => {
                 summary["named_portals"] = named.names.clone().into();
                 summary["triangles"] = named.triangles.len().into();
+                let (picture, share) = portal_visibility(scene, named);
+                summary["unoccluded_share"] = share.into();
+                files.insert(0, DebugFile::Png { name: "portal_visibility.png".into(), image: picture });
             }
         }
         let text = serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n";

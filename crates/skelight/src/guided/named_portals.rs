@@ -3,13 +3,17 @@
 //! pbrt-v4 and Mitsuba 3 let users place portals for the sky, here for any light.
 //!
 //! At a vertex x every portal triangle on the side x reflects into is a candidate, picked
-//! with probability proportional to the solid angle Ω_i it subtends at x (Van Oosterom and
-//! Strackee's formula), and a direction is drawn uniformly within that solid angle (Arvo
-//! 1995, in f64); a triangle too small to sample that way (Ω_i < [`MIN_SOLID_ANGLE`]) is
-//! sampled uniformly by area instead. The density of a direction ω is exact: Σ over every
-//! triangle the line x + tω (t > 0) crosses of q_i·p_i(ω), with q_i = Ω_i/ΣΩ and p_i = 1/Ω_i
-//! (or t²/(|cos θ|·A_i) for an area-sampled one): a line crossing two triangles (a folded
-//! portal, two portals one behind the other) counts both.
+//! with probability q_i proportional to about the solid angle it subtends at x (A·|cos θ|/d²,
+//! cheap), and a direction is drawn uniformly within its solid angle Ω_i (Arvo 1995, in f64;
+//! Ω_i by Van Oosterom and Strackee's formula); a triangle too small to sample that way
+//! (Ω_i < [`MIN_SOLID_ANGLE`]) is sampled uniformly by area instead. The density of a
+//! direction ω is exact: Σ over every triangle the line x + tω (t > 0) crosses of q_i·p_i(ω),
+//! with p_i = 1/Ω_i (or t²/(|cos θ|·A_i) for an area-sampled one): a line crossing two
+//! triangles (a folded portal, two portals one behind the other) counts both.
+//!
+//! With [`NamedPortals::by_area`], points are drawn uniformly by area over the facing
+//! triangles instead (triangles picked by area, density t²/(|cos θ|·A) over every crossed
+//! triangle), for comparison.
 //!
 //! The file is JSON or OBJ, in the scene's world space (after every transform the scene
 //! applies), read by [`NamedPortals::load`]:
@@ -40,6 +44,8 @@ pub type Portal = (String, Vec<[Vec3; 3]>);
 pub struct PortalTriangle {
     pub v: [Vec3; 3],
     pub area: f32,
+    pub normal: Vec3,
+    pub centroid: Vec3,
     /// Which named portal it belongs to.
     pub portal: u16,
 }
@@ -49,6 +55,10 @@ pub struct PortalTriangle {
 pub struct NamedPortals {
     pub names: Vec<String>,
     pub triangles: Vec<PortalTriangle>,
+    /// Draw points uniformly by area on the portals (triangles picked by area), as Cycles'
+    /// and the first portalpt's did, instead of directions by solid angle: for measuring
+    /// what solid-angle sampling buys.
+    pub by_area: bool,
 }
 
 /// Solid angle of the triangle (a, b, c) seen from the origin (Van Oosterom & Strackee 1983).
@@ -168,7 +178,9 @@ impl NamedPortals {
                 if !(area > 1e-6 * size * size) || !area.is_finite() {
                     return Err(format!("portal '{name}', triangle {}: its corners are collinear (no area)", i + 1));
                 }
-                triangles.push(PortalTriangle { v: *v, area, portal });
+                let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+                let centroid = (v[0] + v[1] + v[2]) * (1.0 / 3.0);
+                triangles.push(PortalTriangle { v: *v, area, normal, centroid, portal });
             }
             names.push(name);
         }
@@ -181,7 +193,7 @@ impl NamedPortals {
                 triangles.len()
             ));
         }
-        Ok(NamedPortals { names, triangles })
+        Ok(NamedPortals { names, triangles, by_area: false })
     }
 
     /// Reads a portal file (JSON or OBJ, by its extension; see the module's doc). Errors name
@@ -207,20 +219,29 @@ impl NamedPortals {
 
     /// The portal mixture at `x`, for a vertex reflecting into the hemisphere around
     /// `side` (the geometric normal turned towards the incoming direction): every triangle
-    /// with a corner above that hemisphere's plane, weighted by its solid angle; `None` when
-    /// none is.
+    /// with a corner above that hemisphere's plane, weighted by about its solid angle,
+    /// A·|cos θ|/d² from its centroid (capped at 2π; a selection weight need not be exact,
+    /// only fixed at x), or by its area with [`NamedPortals::by_area`]; `None` when none is.
     pub fn at(&self, x: Vec3, side: Vec3) -> Option<NamedVertex<'_>> {
         let mut weights = [0.0f32; MAX_TRIANGLES];
-        let mut total = 0.0;
-        let o = f64s(x);
+        let mut total = 0.0f32;
         for (i, t) in self.triangles.iter().enumerate() {
             if !t.v.iter().any(|&p| (p - x).dot(side) > 0.0) {
                 continue;
             }
-            let [a, b, c] = t.v.map(|p| sub(f64s(p), o));
-            let omega = solid_angle(a, b, c) as f32;
-            weights[i] = omega;
-            total += omega as f64;
+            weights[i] = if self.by_area {
+                t.area
+            } else {
+                let d = t.centroid - x;
+                let d2 = d.length_squared();
+                let w = t.area * t.normal.dot(d).abs() / (d2 * d2.sqrt());
+                if w.is_finite() {
+                    w.min(2.0 * std::f32::consts::PI)
+                } else {
+                    0.0
+                }
+            };
+            total += weights[i];
         }
         (total > 0.0 && total.is_finite()).then_some(NamedVertex { portals: self, x, weights, total })
     }
@@ -230,47 +251,64 @@ impl NamedPortals {
 pub struct NamedVertex<'a> {
     portals: &'a NamedPortals,
     x: Vec3,
-    /// Each triangle's solid angle at x (0 for those not considered): the triangles'
-    /// selection weights, and the normalisation of the directions drawn in them.
+    /// Each triangle's selection weight (0 for those not considered).
     weights: [f32; MAX_TRIANGLES],
-    total: f64,
+    total: f32,
 }
 
 impl NamedVertex<'_> {
+    /// The solid angle of triangle `t` at x when it is drawn by solid angle, or `None` when
+    /// it is drawn by area (by choice, or too small: [`MIN_SOLID_ANGLE`]). Exact (f64): it
+    /// is the density's normalisation.
+    #[inline]
+    fn drawn_solid_angle(&self, t: &PortalTriangle) -> Option<f64> {
+        if self.portals.by_area {
+            return None;
+        }
+        let o = f64s(self.x);
+        let [a, b, c] = t.v.map(|p| sub(f64s(p), o));
+        Some(solid_angle(a, b, c)).filter(|&omega| omega >= MIN_SOLID_ANGLE)
+    }
+
     /// The solid-angle density of unit direction `w`: Σ over the triangles the line crosses
     /// of q_i·p_i(w).
     pub fn pdf(&self, w: Vec3) -> f32 {
         let mut sum = 0.0f64;
         for (i, t) in self.portals.triangles.iter().enumerate() {
-            let omega = self.weights[i] as f64;
-            if omega <= 0.0 {
+            let weight = self.weights[i];
+            if weight <= 0.0 {
                 continue;
             }
             let Some(dist) = crossing(&t.v, self.x, w) else { continue };
-            let q = omega / self.total;
-            sum += if omega >= MIN_SOLID_ANGLE {
-                q / omega
-            } else {
-                let n = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize();
-                let cos = (n.dot(w) as f64).abs();
-                if cos > 0.0 {
-                    q * dist * dist / (cos * t.area as f64)
-                } else {
-                    0.0
+            let q = (weight / self.total) as f64;
+            sum += match self.drawn_solid_angle(t) {
+                Some(omega) => q / omega,
+                None => {
+                    let cos = (t.normal.dot(w) as f64).abs();
+                    if cos > 0.0 {
+                        q * dist * dist / (cos * t.area as f64)
+                    } else {
+                        0.0
+                    }
                 }
             };
         }
         sum as f32
     }
 
-    /// Draws a direction: a triangle by its solid angle, then a direction uniformly within
-    /// it (or towards a point uniform by area on it, when it is tiny).
+    /// How far along `w` the nearest portal triangle lies, if the line crosses one.
+    pub fn distance_to_portal(&self, w: Vec3) -> Option<f32> {
+        self.portals.triangles.iter().filter_map(|t| crossing(&t.v, self.x, w)).map(|t| t as f32).reduce(f32::min)
+    }
+
+    /// Draws a direction: a triangle by its weight, then a direction uniformly within its
+    /// solid angle, or towards a point uniform by area on it.
     pub fn sample(&self, rng: &mut Rng) -> Vec3 {
-        let mut pick = rng.next_f32() as f64 * self.total;
+        let mut pick = rng.next_f32() * self.total;
         let n = self.portals.triangles.len();
         let mut chosen = (0..n).rev().find(|&i| self.weights[i] > 0.0).unwrap_or(0);
         for i in 0..n {
-            let w = self.weights[i] as f64;
+            let w = self.weights[i];
             if w > 0.0 && pick < w {
                 chosen = i;
                 break;
@@ -278,18 +316,20 @@ impl NamedVertex<'_> {
             pick -= w;
         }
         let t = &self.portals.triangles[chosen];
-        let omega = self.weights[chosen] as f64;
         let u = [rng.next_f32() as f64, rng.next_f32() as f64];
-        if omega >= MIN_SOLID_ANGLE {
-            let o = f64s(self.x);
-            let [a, b, c] = t.v.map(|p| unit(sub(f64s(p), o)));
-            let d = sample_spherical_triangle(a, b, c, omega, u);
-            vec3(d[0] as f32, d[1] as f32, d[2] as f32).normalize()
-        } else {
-            let s = u[0].sqrt() as f32;
-            let (b1, b2) = (1.0 - s, (u[1] as f32) * s);
-            let y = t.v[0] * (1.0 - b1 - b2) + t.v[1] * b1 + t.v[2] * b2;
-            (y - self.x).normalize()
+        match self.drawn_solid_angle(t) {
+            Some(omega) => {
+                let o = f64s(self.x);
+                let [a, b, c] = t.v.map(|p| unit(sub(f64s(p), o)));
+                let d = sample_spherical_triangle(a, b, c, omega, u);
+                vec3(d[0] as f32, d[1] as f32, d[2] as f32).normalize()
+            }
+            None => {
+                let s = u[0].sqrt() as f32;
+                let (b1, b2) = (1.0 - s, (u[1] as f32) * s);
+                let y = t.v[0] * (1.0 - b1 - b2) + t.v[1] * b1 + t.v[2] * b2;
+                (y - self.x).normalize()
+            }
         }
     }
 }
@@ -435,7 +475,11 @@ mod tests {
     /// normalisation, or counting only the first triangle a line crosses, does not.
     #[test]
     fn named_portal_density_integrates_to_one() {
-        let portals = folded();
+        density_integrates_to_one(folded());
+        density_integrates_to_one(NamedPortals { by_area: true, ..folded() });
+    }
+
+    fn density_integrates_to_one(portals: NamedPortals) {
         let mut rng = Rng::new(11, 0, 0);
         for p in POINTS {
             let x = vec3(p[0], p[1], p[2]);
@@ -462,7 +506,11 @@ mod tests {
     /// A density off by a triangle's share fails.
     #[test]
     fn named_portal_draws_follow_their_density() {
-        let portals = folded();
+        draws_follow_their_density(folded());
+        draws_follow_their_density(NamedPortals { by_area: true, ..folded() });
+    }
+
+    fn draws_follow_their_density(portals: NamedPortals) {
         let mut rng = Rng::new(12, 0, 0);
         let (nt, np) = (16usize, 32usize);
         let cell = |w: Vec3| {
@@ -530,7 +578,8 @@ mod tests {
         let v = portals.at(Vec3::ZERO, vec3(0.0, 1.0, 0.0)).expect("in front");
         // A 2×2 square at distance 2 seen from its axis: Ω = 4·atan(a²/(d·√(d² + 2a²))), a = 1, d = 2.
         let exact = 4.0 * (1.0f64 / (2.0 * 6.0f64.sqrt())).atan();
-        assert!((v.total - exact).abs() < 1e-6 * exact, "Ω {} against {exact}", v.total);
+        let omega: f64 = portals.triangles.iter().filter_map(|t| v.drawn_solid_angle(t)).sum();
+        assert!((omega - exact).abs() < 1e-9 * exact, "Ω {omega} against {exact}");
         let mut rng = Rng::new(5, 0, 0);
         for _ in 0..10_000 {
             let w = v.sample(&mut rng);
