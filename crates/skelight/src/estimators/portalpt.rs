@@ -518,8 +518,13 @@ impl Integrator for PortalPathTracer {
             guidance.c_at(si.p, side(si.ng, si.wi)) * share / SELECTIONS[SELECTIONS.len() - 1]
         });
         let mut files = vec![DebugFile::Png { name: "portal_selection.png".into(), image: selection }];
-        let learned = p.moments.counts.iter().filter(|&&n| n >= crate::guided::learning::MIN_OBSERVATIONS).count();
-        let mut summary = serde_json::json!({ "cells_learned": learned });
+        // The learned cells and how many chose each candidate c.
+        let learned: Vec<usize> = (0..p.moments.counts.len()).filter(|&k| p.moments.best(k).is_some()).collect();
+        let chosen: serde_json::Map<String, serde_json::Value> = SELECTIONS
+            .iter()
+            .map(|&c| (c.to_string(), learned.iter().filter(|&&k| p.selection[k] == c).count().into()))
+            .collect();
+        let mut summary = serde_json::json!({ "cells_learned": learned.len(), "cells_choosing_c": chosen });
         match &p.source {
             Source::Analysis { regions, route, lit } => {
                 let picture = label_picture(scene, |si| {

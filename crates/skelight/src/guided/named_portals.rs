@@ -33,6 +33,8 @@ pub const MAX_TRIANGLES: usize = 16;
 /// Below this solid angle (steradians) a triangle is sampled by area: spherical sampling
 /// loses its precision on slivers of the sphere.
 pub const MIN_SOLID_ANGLE: f64 = 1e-6;
+/// How close to a triangle's plane, relative to its size, a point sees it edge-on.
+const PLANE_EPSILON: f32 = 1e-4;
 /// Largest portal file read (bytes): a handful of quads takes a few hundred.
 const MAX_FILE_BYTES: u64 = 1 << 20;
 
@@ -227,6 +229,12 @@ impl NamedPortals {
         let mut total = 0.0f32;
         for (i, t) in self.triangles.iter().enumerate() {
             if !t.v.iter().any(|&p| (p - x).dot(side) > 0.0) {
+                continue;
+            }
+            // A point in the triangle's plane (a wall flush with a portal) would draw
+            // directions in that plane, which no line crosses: density 0 for a drawn
+            // direction. Such triangles are left to the BSDF.
+            if t.normal.dot(t.v[0] - x).abs() <= PLANE_EPSILON * t.area.sqrt() {
                 continue;
             }
             weights[i] = if self.by_area {
@@ -585,6 +593,15 @@ mod tests {
             let w = v.sample(&mut rng);
             assert!((v.pdf(w) as f64 - 1.0 / exact).abs() < 1e-3 / exact, "p = {} off 1/Ω", v.pdf(w));
         }
+    }
+
+    /// A point in a portal's plane (a wall flush with it) is not offered that portal: its
+    /// drawn directions would lie in the plane, where the density is 0.
+    #[test]
+    fn points_in_a_portals_plane_are_not_offered_it() {
+        let portals = folded();
+        assert!(portals.at(vec3(0.5, 0.0, 1.0), vec3(0.0, 0.0, 1.0)).is_none_or(|v| v.weights[..2] == [0.0, 0.0]));
+        assert!(portals.at(vec3(0.5, -0.01, 1.0), vec3(0.0, 1.0, 0.0)).is_some());
     }
 
     #[test]
