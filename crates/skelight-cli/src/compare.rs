@@ -338,10 +338,11 @@ fn img_tag(img: &Image, alt: &str) -> Result<String> {
     Ok(format!(r#"<img alt="{alt}" src="data:image/png;base64,{}"/>"#, base64(&png)))
 }
 
-/// A series' name as a file name: every character other than letters, digits and `.:=,+-`
-/// becomes `_` (a parameter may be a path: `portalpt:portals=scenes/portals/door.json`).
+/// A series' name as a file name: every character other than letters, digits and `.:=,+-#`
+/// becomes `_` (a parameter may be a path: `portalpt:portals=scenes/portals/door.json`;
+/// `pt#2` names a study's second `pt`).
 fn file_stem(name: &str) -> String {
-    name.chars().map(|c| if c.is_ascii_alphanumeric() || ".:=,+-".contains(c) { c } else { '_' }).collect()
+    name.chars().map(|c| if c.is_ascii_alphanumeric() || ".:=,+-#".contains(c) { c } else { '_' }).collect()
 }
 
 /// Writes every output of the study into `dir`.
@@ -436,5 +437,6 @@ mod tests {
     fn series_names_become_file_names() {
         assert_eq!(file_stem("portalpt:portals=/tmp/p/door.json"), "portalpt:portals=_tmp_p_door.json");
         assert_eq!(file_stem("skelpt:c_skel=0.25:adaptive=false"), "skelpt:c_skel=0.25:adaptive=false");
+        assert_eq!(file_stem("pt#2"), "pt#2");
     }
 }
