@@ -4,6 +4,7 @@
 //! its filtering and the mapping of voxels and surface points to its nodes. No renderer
 //! dependency: input is plain triangles.
 
+pub mod bottlenecks;
 pub mod complex;
 pub mod distance;
 pub mod filter;

@@ -4,6 +4,7 @@
 
 use std::time::Instant;
 
+use crate::bottlenecks::{widths, Widths};
 use crate::complex::Complex;
 use crate::distance::{chessboard, EuclideanRows};
 use crate::grid::{Grid, GridError, GridSpec};
@@ -48,6 +49,8 @@ pub struct Analysis {
     pub mapping: NodeMapping,
     pub labelling: Labelling,
     pub portals: Vec<Portal>,
+    /// The regions' peaks and the portals' openings, for joining regions across wide portals.
+    pub widths: Widths,
     /// The empty voxel standing for each anchor, `None` where none lies within
     /// [`ANCHOR_REACH`] voxels on its side.
     pub anchor_voxels: Vec<Option<usize>>,
@@ -198,36 +201,41 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
     );
     let dated = dated?;
     lap("dated thinning (Alg. 2) beside the Euclidean rows", &mut timings);
-    let ((complex, skeleton, filtered, mapping, skeleton_steps), (labelling, portals, opening_steps)) = rayon::join(
-        || {
-            let (keep, w_time) = timed(|| dated.constraint_set(&empty, settings.constraint, &anchors));
-            let ((complex, faces), thin_time) = timed(|| thin_constrained(dated.complex, dated.dates, &keep));
-            let ((skeleton, filtered), graph_time) = timed(|| {
-                let skeleton = SkeletonGraph::from_faces(&complex, &faces, &spec, &empty, |v| edt.at(v));
-                let filtered = skeleton.filtered();
-                (skeleton, filtered)
-            });
-            let (mapping, mapping_time) = timed(|| NodeMapping::new(&filtered, &empty));
-            let steps = [
-                ("constraint set W (Alg. 3)", w_time),
-                ("constrained thinning, piercing (Alg. 3)", thin_time),
-                ("skeleton graph and filtering (Alg. 4)", graph_time),
-                ("node mapping (Alg. 5)", mapping_time),
-            ];
-            (complex, skeleton, filtered, mapping, steps)
-        },
-        || {
-            let (open, opening_time) = timed(|| opening(&chessboard(&empty, true)));
-            let (labelling, labels_time) = timed(|| opening_forest_labelling(&open));
-            let (portals, portals_time) = timed(|| portals(&labelling));
-            let steps = [
-                ("chessboard and opening maps", opening_time),
-                ("opening labels", labels_time),
-                ("opening portals", portals_time),
-            ];
-            (labelling, portals, steps)
-        },
-    );
+    let ((complex, skeleton, filtered, mapping, skeleton_steps), (labelling, portals, widths, opening_steps)) =
+        rayon::join(
+            || {
+                let (keep, w_time) = timed(|| dated.constraint_set(&empty, settings.constraint, &anchors));
+                let ((complex, faces), thin_time) = timed(|| thin_constrained(dated.complex, dated.dates, &keep));
+                let ((skeleton, filtered), graph_time) = timed(|| {
+                    let skeleton = SkeletonGraph::from_faces(&complex, &faces, &spec, &empty, |v| edt.at(v));
+                    let filtered = skeleton.filtered();
+                    (skeleton, filtered)
+                });
+                let (mapping, mapping_time) = timed(|| NodeMapping::new(&filtered, &empty));
+                let steps = [
+                    ("constraint set W (Alg. 3)", w_time),
+                    ("constrained thinning, piercing (Alg. 3)", thin_time),
+                    ("skeleton graph and filtering (Alg. 4)", graph_time),
+                    ("node mapping (Alg. 5)", mapping_time),
+                ];
+                (complex, skeleton, filtered, mapping, steps)
+            },
+            || {
+                let (open, opening_time) = timed(|| opening(&chessboard(&empty, true)));
+                let (labelling, labels_time) = timed(|| opening_forest_labelling(&open));
+                let ((portals, widths), portals_time) = timed(|| {
+                    let portals = portals(&labelling);
+                    let widths = widths(&labelling, &open, &portals);
+                    (portals, widths)
+                });
+                let steps = [
+                    ("chessboard and opening maps", opening_time),
+                    ("opening labels", labels_time),
+                    ("opening portals and their widths", portals_time),
+                ];
+                (labelling, portals, widths, steps)
+            },
+        );
     lap("skeleton, graph, mapping beside the opening, labels, portals", &mut timings);
     let mut steps = vec![("dated thinning (Alg. 2)", dated_time), ("Euclidean rows, enclosed share", rows_time)];
     steps.extend(skeleton_steps);
@@ -241,6 +249,7 @@ pub fn analyse(triangles: &[[[f64; 3]; 3]], settings: &AnalysisSettings) -> Resu
         mapping,
         labelling,
         portals,
+        widths,
         anchor_voxels,
         source_voxels,
         reach,

@@ -331,10 +331,11 @@ fn every_estimator_renders_the_same_image_whatever_the_thread_count() {
     }
 }
 
-/// portalpt with the door's gap named by hand (`scenes/portals/`), learning its selection
-/// pass by pass, estimates the same image as path tracing on the two door scenes.
+/// portalpt with the door's gap named by hand (`scenes/portals/`), and with the portals the
+/// analysis finds (the bottlenecks: regions joined across wide portals), learning its
+/// selection pass by pass, estimates the same image as path tracing on the two door scenes.
 #[test]
-fn portalpt_with_named_portals_agrees_on_the_door_scenes() {
+fn portalpt_with_named_and_automatic_portals_agrees_on_the_door_scenes() {
     for (scene, portals, w, h) in [
         (shared_dir().join("scenes/veach-door/scene.xml"), "veach-door.json", 64, 40),
         (repo_scene("door-corner.toml"), "door-corner.json", 64, 32),
@@ -342,6 +343,7 @@ fn portalpt_with_named_portals_agrees_on_the_door_scenes() {
         let scene = load_small(&scene, w, h);
         let named = format!("portalpt:portals={}", repo_scene("portals").join(portals).display());
         println!("{named}");
-        estimators_agree(&scene, &[("pt", tier_spp(256)), (named.as_str(), tier_spp(256))]);
+        let runs = [("pt", tier_spp(256)), (named.as_str(), tier_spp(256)), ("portalpt", tier_spp(256))];
+        estimators_agree(&scene, &runs);
     }
 }

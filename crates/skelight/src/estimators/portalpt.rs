@@ -4,6 +4,18 @@
 //! regions holding a light are found ([`Regions::lit`]) and a shortest-path tree over the
 //! region graph leads every other region to one of them, through one portal of its own.
 //!
+//! **Bottlenecks.** The opening forest cuts one room into a region per local maximum of the
+//! opening map, and from most of a room the route's next portal was then a face in mid-air
+//! between two of its regions, not the door (issue 68's reading, confirmed in
+//! `docs/studies/portalpt-named`). So regions are joined across every portal that is not a
+//! bottleneck (`bottleneck`, [`Regions::joined`]): a portal stays when the widest ball through
+//! it is narrower than that fraction of the widest balls on both sides — a door, a window, a
+//! gap. Routes, blends and densities then read the joined regions. With `portal_shape=quad`
+//! (the default) each portal on a route is drawn as rectangles fitted to its faces
+//! ([`Regions::fitted_quads`]), by solid angle as named portals are, each weighted by the
+//! point's blend of the regions it routes; `faces` draws a point uniformly by area on the
+//! voxel faces, as below.
+//!
 //! At an eye vertex x, with probability c(x) a point y is drawn uniformly by area on the
 //! portal to x's next region and ω = (y − x)/|y − x|; otherwise the BSDF draws. The direction
 //! is weighted by the density of the whole mixture (one-sample MIS, eq. 168–169), with the
@@ -40,7 +52,7 @@ use std::sync::Arc;
 
 use crate::guided::analysis::{prepare_guide, unguided_because, GuideSettings};
 use crate::guided::learning::{Moments, SelectionCells, TileMoments};
-use crate::guided::named_portals::{NamedPortals, NamedVertex};
+use crate::guided::named_portals::{NamedPortals, NamedVertex, MAX_TRIANGLES};
 use crate::guided::pictures::{label_picture, value_picture};
 use crate::guided::regions::{RegionBlend, Regions, MAX_BLEND};
 use crate::integrator::diagnostics::DebugFile;
@@ -97,6 +109,19 @@ pub const PARAMS: &[ParamSpec] = &[
         doc: "cells along the scene's longest side over which learn chooses c",
     },
     ParamSpec {
+        name: "bottleneck",
+        kind: ParamKind::Float { min: 0.0, max: 2.0 },
+        default: "0.5",
+        doc: "which of the analysis' portals are kept: those whose widest ball through them is narrower than this               fraction of the widest balls on both sides (doors, windows, gaps); the regions across every other               portal are joined into one (issue 68 item 2); above 1 keeps every portal (the thesis' regions)",
+    },
+    ParamSpec {
+        name: "portal_shape",
+        kind: ParamKind::Choice(&["quad", "faces"]),
+        default: "quad",
+        doc: "how the analysis' portals are drawn: quad, a rectangle fitted to each portal's voxel faces, drawn \
+              by solid angle as named portals are; faces, a point uniform by area on its voxel faces (the thesis')",
+    },
+    ParamSpec {
         name: "blend",
         kind: ParamKind::Float { min: 0.0, max: 8.0 },
         default: "1.5",
@@ -115,6 +140,8 @@ const SETTLED_OBSERVATIONS: u64 = 1024;
 
 pub struct PortalPathTracer {
     pub c_portal: f32,
+    pub bottleneck: f64,
+    pub fit_quads: bool,
     pub blend: f32,
     pub resolution: usize,
     pub portals: Option<std::path::PathBuf>,
@@ -128,11 +155,14 @@ pub struct PortalPathTracer {
 enum Source {
     /// The analysis' regions and portals, routed towards the lit regions.
     Analysis {
-        regions: Regions,
+        regions: Box<Regions>,
         /// Per region, the portal towards its next region on the way to a lit one (`None`
         /// in a lit region and where no route exists).
         route: Vec<Option<usize>>,
         lit: Vec<bool>,
+        /// With `portal_shape=quad`, the routes' portals as fitted rectangles (named portal
+        /// q stands for the regions' portal `fitted.1[q]`), drawn as named portals are.
+        fitted: Option<(NamedPortals, Vec<usize>)>,
     },
     /// The user's.
     Named(NamedPortals),
@@ -162,6 +192,8 @@ impl PortalPathTracer {
     pub fn from_params(p: &Params) -> PortalPathTracer {
         PortalPathTracer {
             c_portal: p.float("c_portal") as f32,
+            bottleneck: p.float("bottleneck"),
+            fit_quads: p.choice("portal_shape") == "quad",
             blend: p.float("blend") as f32,
             resolution: p.int("resolution") as usize,
             portals: p.path("portals"),
@@ -217,6 +249,48 @@ fn routes(regions: &Regions, graph: &[Vec<(u32, usize)>], lit: &[bool]) -> Vec<O
         }
     }
     next
+}
+
+/// The portals on the routes as rectangles fitted to their faces ([`Regions::fitted_quads`]),
+/// each two triangles, and which of the regions' portals each named portal stands for;
+/// `None` (faces are drawn) where they are more than [`MAX_TRIANGLES`] triangles or a fit is
+/// degenerate.
+fn fitted_quads(
+    regions: &Regions,
+    route: &[Option<usize>],
+    prep: &mut Preparation,
+) -> Option<(NamedPortals, Vec<usize>)> {
+    let mut portal_of: Vec<usize> = route.iter().flatten().copied().collect();
+    portal_of.sort_unstable();
+    portal_of.dedup();
+    let quads: Vec<(String, Vec<[Vec3; 3]>)> = portal_of
+        .iter()
+        .map(|&k| {
+            (
+                format!("portal {k}"),
+                regions.fitted_quads(k).iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect(),
+            )
+        })
+        .collect();
+    let triangles: usize = quads.iter().map(|(_, t)| t.len()).sum();
+    if triangles == 0 {
+        return None;
+    }
+    if triangles > MAX_TRIANGLES {
+        prep.notes.push(format!(
+            "the {} portals on the routes fit {triangles} triangles, more than {MAX_TRIANGLES}: their voxel faces are \
+             drawn (portal_shape=faces)",
+            portal_of.len()
+        ));
+        return None;
+    }
+    match NamedPortals::new(quads) {
+        Ok(named) => Some((named, portal_of)),
+        Err(why) => {
+            prep.notes.push(format!("a portal's fitted rectangle is degenerate ({why}): voxel faces are drawn"));
+            None
+        }
+    }
 }
 
 /// The portals' offer at the vertices of a prepared render.
@@ -332,10 +406,22 @@ impl PortalGuidance<'_> {
     /// portals); `None` where no portal is offered.
     fn offer(&self, p: Vec3, ng: Vec3, wi: Vec3) -> Option<(Offer<'_>, f32)> {
         match &self.prepared.source {
-            Source::Analysis { regions, route, .. } => {
+            Source::Analysis { regions, route, fitted, .. } => {
                 let blend = regions.blend_at(p, ng, wi, self.blend);
                 let (parts, len, routed) = mixture(route, &blend);
-                (len > 0).then_some((Offer::Regions { regions, x: p, parts, len }, routed))
+                if len == 0 {
+                    return None;
+                }
+                match fitted {
+                    Some((quads, portal_of)) => {
+                        let weight = |q: u16| {
+                            let k = portal_of[q as usize];
+                            parts[..len].iter().find(|(part, _)| *part == k).map_or(0.0, |(_, w)| *w)
+                        };
+                        quads.at_weighted(p, side(ng, wi), weight).map(|v| (Offer::Named(v), routed))
+                    }
+                    None => Some((Offer::Regions { regions, x: p, parts, len }, routed)),
+                }
             }
             Source::Named(portals) => portals.at(p, side(ng, wi)).map(|v| (Offer::Named(v), 1.0)),
         }
@@ -419,8 +505,9 @@ impl PortalPathTracer {
     fn analysed(&self, scene: &Scene, prep: &mut Preparation) -> Result<Source, PrepareError> {
         let guide = prepare_guide(scene, &GuideSettings { resolution: self.resolution }, prep)?;
         let clock = std::time::Instant::now();
-        let graph = guide.region_graph();
-        let regions = Regions::new(Arc::clone(&guide));
+        let mut regions = Regions::joined(Arc::clone(&guide), self.bottleneck);
+        regions.prepare_blend(self.blend);
+        let graph = regions.graph();
         let lit = regions.lit(scene);
         let route = routes(&regions, &graph, &lit);
         let lit_count = lit.iter().filter(|&&l| l).count();
@@ -434,7 +521,8 @@ impl PortalPathTracer {
         if routed == 0 {
             prep.notes.push("no region has a route to a lit one: plain path tracing".into());
         }
-        Ok(Source::Analysis { regions, route, lit })
+        let fitted = self.fit_quads.then(|| fitted_quads(&regions, &route, prep)).flatten();
+        Ok(Source::Analysis { regions: Box::new(regions), route, lit, fitted })
     }
 }
 
@@ -449,8 +537,8 @@ impl Integrator for PortalPathTracer {
             format!(" portals={} portal_sampling={sampling}", p.display())
         });
         format!(
-            "portalpt strategy=paths c_portal={} blend={} resolution={}{portals} learn={} cells={}",
-            self.c_portal, self.blend, self.resolution, self.learn, self.cells
+            "portalpt strategy=paths c_portal={} bottleneck={} portal_shape={} blend={} resolution={}{portals} learn={} cells={}",
+            self.c_portal, self.bottleneck, if self.fit_quads { "quad" } else { "faces" }, self.blend, self.resolution, self.learn, self.cells
         )
     }
 
@@ -515,9 +603,11 @@ impl Integrator for PortalPathTracer {
 
     /// `portal_selection.png` (the probability of drawing through a portal at each primary
     /// hit, over 0.5, the largest candidate: white where half the directions go through a
-    /// portal); with named portals, `portal_visibility.png` (the share of portal directions
-    /// from each primary hit that reach the portal unoccluded); with the analysis' portals, `regions.png` (each primary hit's heaviest
-    /// region, as false colours; lit regions are the sampler's destinations); `routes.json`.
+    /// portal); with named portals and the analysis' fitted ones, `portal_visibility.png` (the
+    /// share of portal directions from each primary hit that reach a portal unoccluded); with
+    /// the analysis' portals, `regions.png` (each primary hit's heaviest region, as false
+    /// colours; lit regions are the sampler's destinations); `routes.json` (with the
+    /// analysis' portals, each portal's regions, centroid, area and fitted rectangles).
     fn debug_files(&self, scene: &Scene) -> Vec<DebugFile> {
         let Some(p) = &self.prepared else { return Vec::new() };
         let guidance = PortalGuidance { prepared: p, blend: self.blend, learning: false };
@@ -534,7 +624,12 @@ impl Integrator for PortalPathTracer {
             .collect();
         let mut summary = serde_json::json!({ "cells_learned": learned.len(), "cells_choosing_c": chosen });
         match &p.source {
-            Source::Analysis { regions, route, lit } => {
+            Source::Analysis { regions, route, lit, fitted } => {
+                if let Some((quads, _)) = fitted {
+                    let (picture, share) = portal_visibility(scene, quads);
+                    summary["unoccluded_share"] = share.into();
+                    files.insert(0, DebugFile::Png { name: "portal_visibility.png".into(), image: picture });
+                }
                 let picture = label_picture(scene, |si| {
                     let blend = regions.blend_at(si.p, si.ng, si.wi, self.blend);
                     blend.iter().max_by(|a, b| a.1.total_cmp(&b.1)).map(|(r, _)| r)
@@ -545,6 +640,26 @@ impl Integrator for PortalPathTracer {
                 summary["portals"] = regions.portals.len().into();
                 summary["lit_regions"] = lit.into();
                 summary["routed_regions"] = route.iter().filter(|r| r.is_some()).count().into();
+                let on_a_route = |k: usize| route.contains(&Some(k));
+                summary["portal_list"] = regions
+                    .portals
+                    .iter()
+                    .enumerate()
+                    .map(|(k, q)| {
+                        serde_json::json!({
+                            "regions": [q.from, q.to],
+                            "centroid": [q.centroid.x, q.centroid.y, q.centroid.z],
+                            "area": q.area,
+                            "fitted_quads": regions
+                                .fitted_quads(k)
+                                .iter()
+                                .map(|quad| quad.map(|c| [c.x, c.y, c.z]))
+                                .collect::<Vec<_>>(),
+                            "on_a_route": on_a_route(k),
+                        })
+                    })
+                    .collect::<Vec<_>>()
+                    .into();
             }
             Source::Named(named) => {
                 summary["named_portals"] = named.names.clone().into();

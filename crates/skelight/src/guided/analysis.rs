@@ -9,6 +9,7 @@ use std::hash::{Hash, Hasher};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use skelight_shape::bottlenecks::Widths;
 use skelight_shape::labeling::Labelling;
 use skelight_shape::mapping::NodeMapping;
 use skelight_shape::pipeline::{analyse, Analysis, AnalysisSettings, Anchor, Resolution};
@@ -45,6 +46,8 @@ pub struct SkeletonGuide {
     pub labelling: Labelling,
     /// The portals between regions (ch. 10): each joins two regions of `labelling`.
     pub portals: Vec<Portal>,
+    /// The regions' peaks and the portals' openings (for [`crate::guided::regions::Regions::joined`]).
+    pub widths: Widths,
     /// Stages of the analysis and their wall times in seconds (zero when cached).
     pub timings: Vec<(String, f64)>,
     /// Memory kept for sampling, in bytes.
@@ -84,6 +87,7 @@ impl SkeletonGuide {
             raw: a.skeleton,
             labelling: a.labelling,
             portals: a.portals,
+            widths: a.widths,
             timings,
             bytes,
         }

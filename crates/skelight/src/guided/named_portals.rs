@@ -225,10 +225,18 @@ impl NamedPortals {
     /// A·|cos θ|/d² from its centroid (capped at 2π; a selection weight need not be exact,
     /// only fixed at x), or by its area with [`NamedPortals::by_area`]; `None` when none is.
     pub fn at(&self, x: Vec3, side: Vec3) -> Option<NamedVertex<'_>> {
+        self.at_weighted(x, side, |_| 1.0)
+    }
+
+    /// [`NamedPortals::at`] with each triangle's weight multiplied by `portal_weight` of its
+    /// portal (0 leaves the portal out): how a point's blend of regions weighs the portals
+    /// on their routes.
+    pub fn at_weighted(&self, x: Vec3, side: Vec3, portal_weight: impl Fn(u16) -> f32) -> Option<NamedVertex<'_>> {
         let mut weights = [0.0f32; MAX_TRIANGLES];
         let mut total = 0.0f32;
         for (i, t) in self.triangles.iter().enumerate() {
-            if !t.v.iter().any(|&p| (p - x).dot(side) > 0.0) {
+            let scale = portal_weight(t.portal);
+            if scale <= 0.0 || !t.v.iter().any(|&p| (p - x).dot(side) > 0.0) {
                 continue;
             }
             // A point in the triangle's plane (a wall flush with a portal) would draw
@@ -237,18 +245,19 @@ impl NamedPortals {
             if t.normal.dot(t.v[0] - x).abs() <= PLANE_EPSILON * t.area.sqrt() {
                 continue;
             }
-            weights[i] = if self.by_area {
-                t.area
-            } else {
-                let d = t.centroid - x;
-                let d2 = d.length_squared();
-                let w = t.area * t.normal.dot(d).abs() / (d2 * d2.sqrt());
-                if w.is_finite() {
-                    w.min(2.0 * std::f32::consts::PI)
+            weights[i] = scale
+                * if self.by_area {
+                    t.area
                 } else {
-                    0.0
-                }
-            };
+                    let d = t.centroid - x;
+                    let d2 = d.length_squared();
+                    let w = t.area * t.normal.dot(d).abs() / (d2 * d2.sqrt());
+                    if w.is_finite() {
+                        w.min(2.0 * std::f32::consts::PI)
+                    } else {
+                        0.0
+                    }
+                };
             total += weights[i];
         }
         (total > 0.0 && total.is_finite()).then_some(NamedVertex { portals: self, x, weights, total })

@@ -13,8 +13,10 @@
 
 use std::sync::Arc;
 
+use skelight_shape::bottlenecks::join_wide_portals;
 use skelight_shape::labeling::NO_LABEL;
 use skelight_shape::mapping::surface_voxel;
+use skelight_shape::portals::Portal;
 
 use super::analysis::{to_f64, SkeletonGuide};
 use crate::light::Light;
@@ -88,6 +90,8 @@ impl RegionBlend {
 /// The regions and portals of a scene's analysis.
 pub struct Regions {
     guide: Arc<SkeletonGuide>,
+    /// Per analysis region, the region it belongs to here (see [`Regions::joined`]).
+    group: Vec<u32>,
     origin: Vec3,
     voxel: f32,
     dims: [i64; 3],
@@ -97,25 +101,46 @@ pub struct Regions {
     pub sizes: Vec<u64>,
     pub centroids: Vec<Vec3>,
     pub portals: Vec<PortalShape>,
+    /// For [`Regions::blend_at`] at the radius [`Regions::prepare_blend`] was given: per
+    /// voxel, the one region of every labelled voxel a blend from a point in it can reach, or
+    /// [`NO_LABEL`] where they differ (most of a room is one region: its points pay one
+    /// lookup instead of the tent over the window).
+    uniform: Option<(f32, Vec<u32>)>,
 }
 
 impl Regions {
+    /// The analysis' regions as they are (the thesis' opening-forest regions, every portal
+    /// kept).
     pub fn new(guide: Arc<SkeletonGuide>) -> Regions {
+        Regions::joined(guide, f64::INFINITY)
+    }
+
+    /// The analysis' regions joined across every portal that is not a bottleneck at
+    /// `bottleneck` (see [`join_wide_portals`]: a portal is kept when the largest ball
+    /// through it is narrower than `bottleneck` × the narrower of its two sides' largest
+    /// balls); a group of joined regions is one region here, and the faces between two groups
+    /// form one portal.
+    pub fn joined(guide: Arc<SkeletonGuide>, bottleneck: f64) -> Regions {
         let spec = guide.labelling.labels.spec;
         let origin = vec3(spec.origin[0] as f32, spec.origin[1] as f32, spec.origin[2] as f32);
         let voxel = spec.voxel as f32;
         let dims = spec.dims.map(|d| d as i64);
-        let count = guide.labelling.count;
+        let (group, count) = if bottleneck.is_finite() && guide.widths.openings.len() == guide.portals.len() {
+            join_wide_portals(guide.labelling.count, &guide.widths, &guide.portals, bottleneck)
+        } else {
+            ((0..=guide.labelling.count).collect(), guide.labelling.count)
+        };
         let mut sums = vec![[0.0f64; 3]; count as usize + 1];
         let mut sizes = vec![0u64; count as usize + 1];
         for (i, &l) in guide.labelling.labels.data.iter().enumerate() {
-            if l != NO_LABEL && (l as usize) < sizes.len() {
+            if l != NO_LABEL && (l as usize) < group.len() {
+                let g = group[l as usize] as usize;
                 let [x, y, z] = spec.coords(i);
                 let c = spec.center(x, y, z);
                 for a in 0..3 {
-                    sums[l as usize][a] += c[a];
+                    sums[g][a] += c[a];
                 }
-                sizes[l as usize] += 1;
+                sizes[g] += 1;
             }
         }
         let centroids = sums
@@ -126,13 +151,20 @@ impl Regions {
                 vec3((s[0] / n) as f32, (s[1] / n) as f32, (s[2] / n) as f32)
             })
             .collect();
-        let portals = guide
-            .portals
-            .iter()
-            .map(|p| {
-                let faces: Vec<([u32; 3], u8)> = p
-                    .squares
+        // The faces between two groups, gathered from their regions' portals.
+        let mut between: std::collections::BTreeMap<(u32, u32), Vec<&Portal>> = Default::default();
+        for p in &guide.portals {
+            let (a, b) = (group[p.from as usize], group[p.to as usize]);
+            if a != b {
+                between.entry((a.min(b), a.max(b))).or_default().push(p);
+            }
+        }
+        let portals = between
+            .into_iter()
+            .map(|((from, to), parts)| {
+                let faces: Vec<([u32; 3], u8)> = parts
                     .iter()
+                    .flat_map(|p| p.squares.iter())
                     .map(|&(i, axis)| {
                         let [x, y, z] = spec.coords(i);
                         ([x as u32, y as u32, z as u32], axis)
@@ -147,19 +179,108 @@ impl Regions {
                         hi[a] = hi[a].max(c + i64::from(a == axis as usize));
                     }
                 }
-                let c = p.centroid;
+                let area: f64 = parts.iter().map(|p| p.area).sum();
+                let c =
+                    parts.iter().fold([0.0f64; 3], |acc, p| [0, 1, 2].map(|a| acc[a] + p.centroid[a] * p.area / area));
                 PortalShape {
-                    from: p.from,
-                    to: p.to,
+                    from,
+                    to,
                     faces,
                     voxel_lo: lo,
                     voxel_hi: hi,
-                    area: p.area as f32,
+                    area: area as f32,
                     centroid: vec3(c[0] as f32, c[1] as f32, c[2] as f32),
                 }
             })
             .collect();
-        Regions { guide, origin, voxel, dims, count, sizes, centroids, portals }
+        Regions { guide, group, origin, voxel, dims, count, sizes, centroids, portals, uniform: None }
+    }
+
+    /// The region graph: for every region (1..=count; index 0 unused), the regions it shares
+    /// a portal with and that portal's index in [`Regions::portals`].
+    pub fn graph(&self) -> Vec<Vec<(u32, usize)>> {
+        let mut graph = vec![Vec::new(); self.count as usize + 1];
+        for (i, p) in self.portals.iter().enumerate() {
+            graph[p.from as usize].push((p.to, i));
+            graph[p.to as usize].push((p.from, i));
+        }
+        graph
+    }
+
+    /// Rectangles that stand for portal `k`'s faces, one per axis its faces are normal to
+    /// (those holding at least a tenth of them): a door's gap is mostly faces along one axis,
+    /// with a few across the head of the gap, which one plane would tilt. Each is the
+    /// rectangle in the plane that fits its faces' corners best (normal to their covariance's
+    /// least principal axis, so an oblique staircase gets its own slant), spanning them all.
+    pub fn fitted_quads(&self, k: usize) -> Vec<[Vec3; 4]> {
+        let p = &self.portals[k];
+        let mut counts = [0usize; 3];
+        p.faces.iter().for_each(|&(_, a)| counts[a as usize] += 1);
+        (0..3u8)
+            .filter(|&a| counts[a as usize] > 0 && 10 * counts[a as usize] >= p.faces.len())
+            .map(|axis| self.fit_rectangle(p.faces.iter().filter(|f| f.1 == axis)))
+            .collect()
+    }
+
+    /// The rectangle fitted to `faces` (see [`Regions::fitted_quads`]).
+    fn fit_rectangle<'a>(&self, faces: impl Iterator<Item = &'a ([u32; 3], u8)> + Clone) -> [Vec3; 4] {
+        let corners = faces.flat_map(|&(v, axis)| {
+            let axis = axis as usize;
+            let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+            let mut g = vec3(v[0] as f32, v[1] as f32, v[2] as f32);
+            g[axis] += 1.0;
+            [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)].map(|(db, dc)| {
+                let mut q = g;
+                q[b] += db;
+                q[c] += dc;
+                self.origin + q * self.voxel
+            })
+        });
+        let (mut sum, mut count) = (Vec3::ZERO, 0.0f32);
+        for q in corners.clone() {
+            sum += q;
+            count += 1.0;
+        }
+        let mean = sum * (1.0 / count.max(1.0));
+        let mut cov = [[0.0f64; 3]; 3];
+        for q in corners.clone() {
+            let d = q - mean;
+            for i in 0..3 {
+                for j in 0..3 {
+                    cov[i][j] += d[i] as f64 * d[j] as f64;
+                }
+            }
+        }
+        let [u, v, n] = principal_axes(cov).map(|e| vec3(e[0] as f32, e[1] as f32, e[2] as f32));
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for q in corners {
+            for (a, e) in [u, v, n].into_iter().enumerate() {
+                lo[a] = lo[a].min((q - mean).dot(e));
+                hi[a] = hi[a].max((q - mean).dot(e));
+            }
+        }
+        let centre = mean + n * (0.5 * (lo[2] + hi[2]));
+        [(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])].map(|(a, b)| centre + u * a + v * b)
+    }
+
+    /// Readies [`Regions::blend_at`] for `radius`: the region of each voxel's reach where it
+    /// is one. A blend from a point whose half-voxel-ahead point q lies in voxel V weighs the
+    /// voxels within `radius` + ½ of q, all within ⌈radius + ½⌉ of V per axis, so where those
+    /// are one region (or outside the set) the blend is that region alone. Per axis, a
+    /// sliding minimum and maximum of the labels (unlabelled voxels left out) over that reach.
+    pub fn prepare_blend(&mut self, radius: f32) {
+        let reach = (radius + 0.5).ceil().max(0.0) as usize;
+        let labels = &self.guide.labelling.labels.data;
+        let mut lo: Vec<u32> =
+            labels.iter().map(|&l| if l == NO_LABEL { u32::MAX } else { self.group[l as usize] }).collect();
+        let mut hi: Vec<u32> = labels.iter().map(|&l| self.group[l as usize]).collect();
+        let dims = self.dims.map(|d| d as usize);
+        for axis in 0..3 {
+            sliding_extreme(&mut lo, dims, axis, reach, u32::min);
+            sliding_extreme(&mut hi, dims, axis, reach, u32::max);
+        }
+        let uniform = lo.iter().zip(&hi).map(|(&a, &b)| if a == b && b != NO_LABEL { a } else { NO_LABEL }).collect();
+        self.uniform = Some((radius, uniform));
     }
 
     pub fn voxel_size(&self) -> f32 {
@@ -173,7 +294,7 @@ impl Regions {
             return NO_LABEL;
         }
         let i = (v[0] + self.dims[0] * (v[1] + self.dims[1] * v[2])) as usize;
-        self.guide.labelling.labels.data[i]
+        self.group[self.guide.labelling.labels.data[i] as usize]
     }
 
     /// The region of the labelled voxel standing for surface point `p` seen from `towards`
@@ -181,7 +302,7 @@ impl Regions {
     pub fn region_at(&self, p: Vec3, ng: Vec3, towards: Vec3) -> Option<u32> {
         let labels = &self.guide.labelling.labels;
         let v = surface_voxel(&labels.spec, |i| labels.data[i] != NO_LABEL, to_f64(p), to_f64(ng), to_f64(towards))?;
-        Some(labels.data[v])
+        Some(self.group[labels.data[v] as usize])
     }
 
     /// The regions of surface point `p` (normal `ng`, seen from `towards`) blended over
@@ -190,12 +311,23 @@ impl Regions {
     /// how far in front of the surface it lies (0 behind it, 1 from half a voxel ahead), so
     /// the weights vary continuously with `p`. Where no voxel weighs (a point deep in thin
     /// geometry), the region of [`Regions::region_at`] alone; a radius of 0 is that too (a
-    /// hard switch between regions). Empty outside the grid.
+    /// hard switch between regions). Empty outside the grid. After
+    /// [`Regions::prepare_blend`] at this radius, a point whose reach is one region gets it
+    /// in one lookup.
     pub fn blend_at(&self, p: Vec3, ng: Vec3, towards: Vec3, radius: f32) -> RegionBlend {
         let n = if ng.dot(towards) >= 0.0 { ng } else { -ng };
         if radius > 0.0 {
-            let mut blend = RegionBlend::default();
             let q = (p + n * (0.5 * self.voxel) - self.origin) * (1.0 / self.voxel);
+            if let Some((r, uniform)) = &self.uniform {
+                let v = [0, 1, 2].map(|a| q[a].floor() as i64);
+                if *r == radius && (0..3).all(|a| v[a] >= 0 && v[a] < self.dims[a]) {
+                    let only = uniform[(v[0] + self.dims[0] * (v[1] + self.dims[1] * v[2])) as usize];
+                    if only != NO_LABEL {
+                        return RegionBlend::single(only);
+                    }
+                }
+            }
+            let mut blend = RegionBlend::default();
             let lo = [0, 1, 2].map(|a| (q[a] - 0.5 - radius).ceil() as i64);
             let hi = [0, 1, 2].map(|a| (q[a] - 0.5 + radius).floor() as i64);
             let pg = (p - self.origin) * (1.0 / self.voxel);
@@ -342,6 +474,68 @@ impl Regions {
     }
 }
 
+/// Replaces each value of a grid (x fastest) by `pick` over the values within `reach` along
+/// `axis` (a sliding minimum or maximum, window clipped at the grid's ends).
+fn sliding_extreme(values: &mut [u32], dims: [usize; 3], axis: usize, reach: usize, pick: fn(u32, u32) -> u32) {
+    let stride = [1, dims[0], dims[0] * dims[1]][axis];
+    let n = dims[axis];
+    let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+    let mut line = vec![0u32; n];
+    for j in 0..dims[c] {
+        for i in 0..dims[b] {
+            let mut start = [0usize; 3];
+            start[b] = i;
+            start[c] = j;
+            let first = start[0] + dims[0] * (start[1] + dims[1] * start[2]);
+            for (k, value) in line.iter_mut().enumerate() {
+                *value = values[first + k * stride];
+            }
+            for k in 0..n {
+                let window = &line[k.saturating_sub(reach)..(k + reach + 1).min(n)];
+                values[first + k * stride] = window.iter().copied().reduce(pick).unwrap_or(line[k]);
+            }
+        }
+    }
+}
+
+/// The unit eigenvectors of a symmetric 3×3 matrix, by decreasing eigenvalue (cyclic Jacobi
+/// rotations; a handful of sweeps reach f64 precision on a 3×3).
+fn principal_axes(mut a: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut e = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _ in 0..32 {
+        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
+        if off <= 1e-12 * (a[0][0].abs() + a[1][1].abs() + a[2][2].abs()) {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if a[p][q] == 0.0 {
+                continue;
+            }
+            // The rotation in the (p, q) plane that zeroes a[p][q].
+            let theta = 0.5 * (2.0 * a[p][q]).atan2(a[q][q] - a[p][p]);
+            let (s, c) = theta.sin_cos();
+            for row in &mut a {
+                let (akp, akq) = (row[p], row[q]);
+                row[p] = c * akp - s * akq;
+                row[q] = s * akp + c * akq;
+            }
+            let (row_p, row_q) = (a[p], a[q]);
+            for k in 0..3 {
+                a[p][k] = c * row_p[k] - s * row_q[k];
+                a[q][k] = s * row_p[k] + c * row_q[k];
+            }
+            for row in &mut e {
+                let (ep, eq) = (row[p], row[q]);
+                row[p] = c * ep - s * eq;
+                row[q] = s * ep + c * eq;
+            }
+        }
+    }
+    let mut order = [0, 1, 2];
+    order.sort_by(|&i, &j| a[j][j].total_cmp(&a[i][i]));
+    order.map(|i| [e[0][i], e[1][i], e[2][i]])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -441,6 +635,7 @@ mod tests {
             raw: Default::default(),
             labelling,
             portals,
+            widths: Default::default(),
             timings: Vec::new(),
             bytes: 0,
         };
@@ -520,6 +715,119 @@ mod tests {
         println!("Ω = {omega_draws:.5} ± {se_draws:.5} (draws) vs {omega_sphere:.5} ± {se_sphere:.5} (sphere)");
         let se = (se_draws * se_draws + se_sphere * se_sphere).sqrt();
         assert!((omega_draws - omega_sphere).abs() < 4.0 * se);
+    }
+
+    /// On the embedded two rooms, joining regions across wide portals leaves one region per
+    /// room and one portal, in the gap the door left ajar leaves in the doorway (x = 4–4.1,
+    /// z ∈ [1.5, 2.5], y < 2): the opening forest cuts each room into several regions, and
+    /// all but the gap's portals are in mid-air.
+    #[test]
+    fn joined_regions_are_the_rooms_and_their_portal_the_door() {
+        let (scene, raw) = two_rooms();
+        let joined = Regions::joined(Arc::clone(&raw.guide), 0.5);
+        println!(
+            "{} regions, {} portals; joined: {} and {}",
+            raw.count,
+            raw.portals.len(),
+            joined.count,
+            joined.portals.len()
+        );
+        assert!(raw.count > 2, "nothing to join: {} regions", raw.count);
+        assert_eq!((joined.count, joined.portals.len()), (2, 1));
+        let door = &joined.portals[0];
+        let c = door.centroid;
+        let v = joined.voxel;
+        assert!((c.x - 4.05).abs() < 2.0 * v && c.y < 2.0 && (1.5 - v..2.5 + v).contains(&c.z), "portal at {c:?}");
+        // The lamp's room is lit, the other is routed through the door.
+        let lit = joined.lit(&scene);
+        assert_eq!(lit.iter().filter(|&&l| l).count(), 1);
+        let up = vec3(0.0, 1.0, 0.0);
+        let (near, far) =
+            (joined.region_at(vec3(1.0, 0.0, 3.0), up, up), joined.region_at(vec3(7.0, 0.0, 3.0), up, up));
+        assert!(near.is_some() && near != far && lit[far.unwrap() as usize], "regions {near:?} and {far:?}");
+        // The fitted rectangle stands where the door left ajar leaves its gap: on the
+        // partition's far face (the door opens into the far room), as tall as the doorway,
+        // from the frame at z = 1.5 to short of the door's hinge at z = 2.5 (its free edge
+        // swings to z ≈ 1.56), give or take the voxels the faces step by.
+        let quads = joined.fitted_quads(0);
+        println!("fitted quads {quads:?}");
+        assert_eq!(quads.len(), 1, "the doorway's faces are all along x");
+        let quad = quads[0];
+        let (lo, hi) =
+            quad.iter().fold((vec3(1e9, 1e9, 1e9), vec3(-1e9, -1e9, -1e9)), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+        assert!(lo.x > 4.1 - v && hi.x < 4.1 + 2.0 * v, "the quad leaves the wall: {quad:?}");
+        assert!((lo.y - 0.0).abs() < 2.0 * v && (hi.y - 2.0).abs() < 2.0 * v, "its height: {quad:?}");
+        assert!((lo.z - 1.5).abs() < 2.0 * v && hi.z < 2.0, "its width: {quad:?}");
+        // Every voxel of the joined regions carries a group's label.
+        assert!(
+            joined.sizes[1..].iter().all(|&n| n > 0)
+                && joined.sizes.iter().sum::<u64>() == raw.sizes.iter().sum::<u64>()
+        );
+    }
+
+    /// The one-lookup blend of a prepared radius is the tent's wherever the tent finds one
+    /// region: at points all over the two rooms, on the floor, the walls and the partition.
+    #[test]
+    fn prepared_blends_are_the_tents() {
+        let (_, raw) = two_rooms();
+        let slow = Regions::joined(Arc::clone(&raw.guide), 0.5);
+        let mut fast = Regions::joined(Arc::clone(&raw.guide), 0.5);
+        fast.prepare_blend(1.5);
+        let mut rng = Rng::new(8, 0, 0);
+        let mut mixed = 0;
+        for _ in 0..20000 {
+            let u = rng.next_2d();
+            let (p, n) = match (rng.next_f32() * 4.0) as u32 {
+                0 => (vec3(8.0 * u.x, 0.0, 4.0 * u.y), vec3(0.0, 1.0, 0.0)),
+                1 => (vec3(8.0 * u.x, 2.5 * u.y, 0.0), vec3(0.0, 0.0, 1.0)),
+                2 => (vec3(4.0, 2.5 * u.y, 4.0 * u.x), vec3(-1.0, 0.0, 0.0)),
+                _ => (vec3(4.1, 2.5 * u.y, 4.0 * u.x), vec3(1.0, 0.0, 0.0)),
+            };
+            let (a, b) = (slow.blend_at(p, n, n, 1.5), fast.blend_at(p, n, n, 1.5));
+            mixed += usize::from(a.len > 1);
+            let same = a.len == b.len && a.iter().zip(b.iter()).all(|(x, y)| x.0 == y.0 && (x.1 - y.1).abs() < 1e-6);
+            assert!(same || a.is_empty(), "at {p:?}: tent {:?}, prepared {:?}", &a.items[..a.len], &b.items[..b.len]);
+        }
+        println!("{mixed} of 20000 points blend several regions");
+        assert!(mixed > 20, "too few points by the door to tell");
+    }
+
+    /// A joined portal's density (the faces of several of the analysis' portals, walked by the
+    /// joined labels) integrates to one, from both rooms.
+    #[test]
+    fn joined_portal_densities_integrate_to_one() {
+        let mut rng = Rng::new(5, 0, 0);
+        let (_, raw) = two_rooms();
+        let joined = Regions::joined(Arc::clone(&raw.guide), 0.5);
+        let off = vec3(0.31, 0.17, 0.23) * joined.voxel;
+        for x in [vec3(3.0, 1.0, 2.2) + off, vec3(5.0, 1.2, 1.8) + off] {
+            let (mean, se) = integral(&joined, 0, x, 400_000, &mut rng);
+            println!("from {x:?}: {} faces, ∫p dω = {mean:.4} ± {se:.4}", joined.portals[0].faces.len());
+            assert!((mean - 1.0).abs() < 4.0 * se, "∫p dω = {mean} ± {se}");
+        }
+    }
+
+    /// The principal axes of a known covariance: an ellipsoid's axes rotated by a known
+    /// rotation come back, by decreasing variance.
+    #[test]
+    fn principal_axes_recover_a_rotated_ellipsoid() {
+        let r = crate::math::Frame::from_normal(vec3(0.3, -0.5, 0.81).normalize());
+        let axes = [r.s, r.t, r.n].map(|e| [e.x as f64, e.y as f64, e.z as f64]);
+        let variances = [9.0, 4.0, 0.01];
+        let mut cov = [[0.0f64; 3]; 3];
+        for (e, var) in axes.iter().zip(variances) {
+            for i in 0..3 {
+                for j in 0..3 {
+                    cov[i][j] += var * e[i] * e[j];
+                }
+            }
+        }
+        let found = principal_axes(cov);
+        for (f, e) in found.iter().zip(&axes) {
+            let dot: f64 = (0..3).map(|i| f[i] * e[i]).sum();
+            // The axes were made in f32: they are orthonormal to about 1e-7.
+            assert!(dot.abs() > 1.0 - 1e-6, "axis {f:?} against {e:?}");
+        }
     }
 
     /// The largest change of a point's blend, Σ_R |Δw_R|, per voxel moved, between
