@@ -265,11 +265,12 @@ impl Regions {
 
     /// Readies [`Regions::blend_at`] for `radius`: the region of each voxel's reach where it
     /// is one. A blend from a point whose half-voxel-ahead point q lies in voxel V weighs the
-    /// voxels within `radius` + ½ of q, all within ⌈radius + ½⌉ of V per axis, so where those
-    /// are one region (or outside the set) the blend is that region alone. Per axis, a
-    /// sliding minimum and maximum of the labels (unlabelled voxels left out) over that reach.
+    /// voxels x whose centres lie closer than `radius` to q per axis: V − ½ − radius < x <
+    /// V + ½ + radius, so |x − V| ≤ ⌈radius − ½⌉. Where those are one region (or outside the
+    /// set) the blend is that region alone. Per axis, a sliding minimum and maximum of the
+    /// labels (unlabelled voxels left out) over that reach.
     pub fn prepare_blend(&mut self, radius: f32) {
-        let reach = (radius + 0.5).ceil().max(0.0) as usize;
+        let reach = (radius - 0.5).ceil().max(0.0) as usize;
         let labels = &self.guide.labelling.labels.data;
         let mut lo: Vec<u32> =
             labels.iter().map(|&l| if l == NO_LABEL { u32::MAX } else { self.group[l as usize] }).collect();
