@@ -126,7 +126,7 @@ mod tests {
     /// opening is 1 voxel against rooms of peaks ≥ 4; inside a room the wings meet wide.
     #[test]
     fn rooms_stay_apart_and_their_parts_join() {
-        let (set, o, l, ps, w) = analysed();
+        let (set, _, l, ps, w) = analysed();
         println!("{} regions, peaks {:?}, openings {:?}", l.count, w.peaks, w.openings);
         assert!(l.count > 2, "the rooms are not cut into parts ({} regions): nothing to join", l.count);
         let (group, groups) = join_wide_portals(l.count, &w, &ps, 0.5);
