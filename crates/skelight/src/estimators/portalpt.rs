@@ -561,7 +561,11 @@ impl Integrator for PortalPathTracer {
                 ));
                 Source::Named(named)
             }
-            None => self.analysed(scene, &mut prep)?,
+            None => match self.analysed(scene, &mut prep)? {
+                // Nothing to guide: plain path tracing, at pt's cost per sample.
+                Source::Analysis { route, .. } if route.iter().all(Option::is_none) => return Ok(prep),
+                analysed => analysed,
+            },
         };
         let cells = SelectionCells::new(scene.bounds(), self.cells);
         let keys = cells.keys();
