@@ -6,7 +6,9 @@ mod gpu_cmd;
 mod render_cmd;
 mod skeleton;
 
-use render_cmd::{print_preparation, print_report, summary, write_debug_files, write_outputs, Job, RenderArgs};
+use render_cmd::{
+    check_output, print_preparation, print_report, summary, write_debug_files, write_outputs, Job, RenderArgs,
+};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -98,6 +100,7 @@ enum Command {
     /// Combine independent renders of one scene (weighted by their sample counts).
     Merge {
         parts: Vec<PathBuf>,
+        /// Output image, named as render's -o (never one of the parts).
         #[arg(short, long)]
         output: PathBuf,
         /// Weight every part equally (for images without a recorded sample count).
@@ -153,7 +156,7 @@ struct CompareArgs {
 struct ReferenceArgs {
     /// Scene file. Omit for the embedded default scene.
     scene: Option<PathBuf>,
-    /// Output image (.exr); its checkpoint is OUT.exr.ckpt.
+    /// Output image, named as render's -o; its checkpoint is OUT.exr.ckpt.
     #[arg(short, long)]
     output: PathBuf,
     #[arg(short, long, default_value = "pt")]
@@ -472,6 +475,7 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         device,
         ..JobSpec::default()
     };
+    check_output(&args.output, &args.scene.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     let mut job = Job::new(args.scene.as_deref(), &args.define, &args.setup, spec)?;
     let reference = job.open_reference(&args.output, args.checkpoint_every)?;
     // A finished reference renders nothing: no device is set up for it.
@@ -495,7 +499,12 @@ fn reference(args: ReferenceArgs) -> Result<()> {
 }
 
 fn compare_cmd(a: CompareArgs) -> Result<()> {
+    // Checked before the timed runs, not after them.
+    if a.output.exists() && !a.output.is_dir() {
+        bail!("output {} exists and is not a folder; the report is a folder of files", a.output.display());
+    }
     let reference = Image::load(&a.reference)?;
+    refuse_non_finite(&a.reference, &reference, "compare against")?;
     let mut scene = load_scene(a.scene.as_deref(), &a.define)?;
     a.setup.apply(&mut scene)?;
     if a.setup.resolution.is_none()
@@ -570,6 +579,7 @@ fn refuse_non_finite(path: &Path, img: &Image, verb: &str) -> Result<()> {
 /// Shards of one render (`render --shard`) are merged exactly, by adding their films, and
 /// only when each shard is given once.
 fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
+    let out = check_output(output, &parts.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     let shards = parts.iter().map(|p| skelight::shard::is_shard_file(p)).collect::<Result<Vec<bool>, _>>()?;
     if shards.iter().any(|s| *s) {
         if equal_weights {
@@ -590,9 +600,9 @@ fn merge(parts: &[PathBuf], output: &Path, equal_weights: bool) -> Result<()> {
         return Ok(());
     }
     let (img, total) = skelight::shard::merge_independent(parts, equal_weights)?;
-    img.save_exr_with(output, &[("skelight.spp", total)])?;
-    img.save_png(&output.with_extension("png"), 0.0)?;
-    eprintln!("merged {} images ({} spp in all) → {}", parts.len(), total, output.display());
+    img.save_exr_with(&out.exr, &[("skelight.spp", total)])?;
+    img.save_png(&out.png, 0.0)?;
+    eprintln!("merged {} images ({} spp in all) → {}", parts.len(), total, out.exr.display());
     Ok(())
 }
 

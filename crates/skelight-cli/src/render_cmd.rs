@@ -8,7 +8,7 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use skelight::estimators::registry;
-use skelight::imageio::Image;
+use skelight::imageio::{write_target, Image, ImageOutput};
 use skelight::integrator;
 use skelight::integrator::Integrator;
 use skelight::job::{JobError, JobSpec, Reference, Rendered};
@@ -22,7 +22,9 @@ use crate::{load_scene, parse_define, parse_duration, parse_heuristic, parse_par
 pub(crate) struct RenderArgs {
     /// Scene file (.xml). Omit to render the embedded default scene.
     pub(crate) scene: Option<PathBuf>,
-    /// Output image (.exr); a tone-mapped PNG is written beside it.
+    /// Output image: OUT.exr and a tone-mapped OUT.png beside it (`-o x.png` writes x.exr
+    /// too; other extensions are refused). Existing files are replaced; devices, FIFOs and
+    /// folders never are.
     #[arg(short, long, default_value = "render.exr")]
     pub(crate) output: PathBuf,
     #[arg(short, long, default_value = "pt", help = crate::estimator_line())]
@@ -216,7 +218,25 @@ pub(crate) fn print_report(integrator: &dyn Integrator) {
     }
 }
 
+/// The image files `output` names, checked before any work is done: each must be a regular
+/// file or absent (never a device node, a FIFO or a folder) and none may be one of `inputs`.
+pub(crate) fn check_output(output: &Path, inputs: &[&Path]) -> Result<ImageOutput> {
+    let out = ImageOutput::of(output)?;
+    // `-o /dev/null` names no extension, but the device itself must not be taken for a name.
+    write_target(output).map_err(anyhow::Error::msg).with_context(|| format!("output {}", output.display()))?;
+    let canonical = |p: &Path| p.canonicalize().ok();
+    for file in [&out.exr, &out.png] {
+        let target =
+            write_target(file).map_err(anyhow::Error::msg).with_context(|| format!("output {}", file.display()))?;
+        if let Some(input) = inputs.iter().find(|i| canonical(i).is_some_and(|c| Some(c) == canonical(&target))) {
+            bail!("output {} would replace the input {}; choose another output", file.display(), input.display());
+        }
+    }
+    Ok(out)
+}
+
 pub(crate) fn summary(r: &Rendered, pixels: usize, img: &Image, output: &Path) {
+    let out = ImageOutput::of(output).unwrap_or(ImageOutput { exr: output.into(), png: output.with_extension("png") });
     let secs = r.elapsed.as_secs_f64();
     let m = img.mean();
     eprintln!(
@@ -228,12 +248,13 @@ pub(crate) fn summary(r: &Rendered, pixels: usize, img: &Image, output: &Path) {
         m.g,
         m.b,
         r.film.rejected,
-        output.display(),
-        output.with_extension("png").display()
+        out.exr.display(),
+        out.png.display()
     );
 }
 
 pub(crate) fn render(args: RenderArgs) -> Result<()> {
+    check_output(&args.output, &args.scene.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     let mut params = args.params.clone();
     if let Some(h) = args.heuristic {
         params.push(("heuristic".into(), format!("{h:?}").to_lowercase()));

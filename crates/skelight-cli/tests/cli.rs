@@ -1,5 +1,6 @@
 //! The `skelight` command as a user runs it.
 
+use std::os::unix::fs::FileTypeExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -625,4 +626,50 @@ fn icbpt_distribution_pictures() {
     let (text, dbg, _) = render_distributions("icbpt");
     assert!(text.contains("importance records") && text.contains("per iteration"), "{text}");
     assert!(!dbg.join("nodes_view.png").exists());
+}
+
+/// Issue 59, "output onto a device node" and "output clobbering": an output that exists and
+/// is not a regular file is refused before anything renders (a FIFO, a folder, a device
+/// named without extension), a link is written through, `-o x.png` keeps the EXR as x.exr,
+/// and no output replaces an input of the same run (the scene, a merged part).
+#[test]
+fn outputs_never_replace_devices_folders_or_inputs() {
+    let d = tmp("outputs");
+    let path = |name: &str| d.join(name).to_str().unwrap().to_string();
+    let render = ["render", "--spp", "1", "--resolution", "8", "6", "-q", "-o"];
+    let fifo = d.join("pipe.exr");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    std::fs::create_dir(d.join("folder.exr")).unwrap();
+    for target in ["pipe.exr", "folder.exr", "folder.png"] {
+        std::fs::create_dir_all(d.join("folder.png")).unwrap();
+        run_fails(&[&render[..], &[&path(target)]].concat(), &["not a regular file"]);
+    }
+    assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    // A name without extension that is a device: refused, nothing written beside it.
+    let dev = d.join("device");
+    std::os::unix::fs::symlink("/dev/null", &dev).unwrap();
+    run_fails(&[&render[..], &[&path("device")]].concat(), &["not a regular file"]);
+    assert!(!d.join("device.exr").exists() && !d.join("device.png").exists());
+
+    run_ok(&[&render[..], &[&path("x.png")]].concat());
+    assert!(Image::load_exr_with_attributes(&d.join("x.exr")).is_ok(), "-o x.png must keep the EXR");
+    assert_eq!(&std::fs::read(d.join("x.png")).unwrap()[1..4], b"PNG");
+
+    std::fs::write(d.join("kept.exr"), b"mine").unwrap();
+    std::os::unix::fs::symlink(d.join("kept.exr"), d.join("link.exr")).unwrap();
+    run_ok(&[&render[..], &[&path("link.exr")]].concat());
+    assert!(std::fs::symlink_metadata(d.join("link.exr")).unwrap().file_type().is_symlink());
+    assert!(Image::load(&d.join("kept.exr")).is_ok(), "the link's target holds the render");
+
+    let scene = d.join("scene.xml");
+    std::fs::write(&scene, "<scene version=\"3.0.0\"/>").unwrap();
+    run_fails(&[&render[..], &[&path("scene.xml")]].concat(), &["scene.xml", ".exr", ".png"]);
+    assert_eq!(std::fs::read_to_string(&scene).unwrap(), "<scene version=\"3.0.0\"/>");
+    let x = path("x.exr");
+    run_fails(&["merge", &x, "-o", &x], &["would replace the input"]);
+    run_fails(&["merge", &x, "-o", &path("x.png")], &["would replace the input"]);
+    // compare refuses a file as its report folder before the timed runs, not after them.
+    let started = Instant::now();
+    run_fails(&["compare", "--reference", &x, "--time", "30", "-o", &path("kept.exr")], &["not a folder"]);
+    assert!(started.elapsed() < Duration::from_secs(20));
 }

@@ -199,8 +199,60 @@ fn decode_image(path: &Path) -> Result<image::DynamicImage, String> {
     })?
 }
 
-/// Runs `write` on a temporary file beside `path`, then renames it into place.
+/// Where a render's image goes: the OpenEXR file and the tone-mapped PNG beside it. `x.exr`
+/// and `x` give `x.exr` and `x.png`; `x.png` gives the same two, so that naming the PNG never
+/// loses the HDR image under it. Any other extension is refused: an output named like the
+/// scene (`-o scene.xml`) would replace an input.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageOutput {
+    pub exr: PathBuf,
+    pub png: PathBuf,
+}
+
+impl ImageOutput {
+    pub fn of(path: &Path) -> Result<ImageOutput, ImageError> {
+        let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+        match ext.as_deref() {
+            None | Some("exr") | Some("png") => {
+                let exr = if ext.as_deref() == Some("exr") { path.to_path_buf() } else { path.with_extension("exr") };
+                Ok(ImageOutput { png: exr.with_extension("png"), exr })
+            }
+            Some(other) => Err(ImageError::Write {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "an image output is named .exr (a PNG is written beside it) or .png (the EXR is written \
+                     beside it), not .{other}"
+                ),
+            }),
+        }
+    }
+}
+
+/// The file a write to `path` lands on: `path` itself, or the file a link at `path` points to
+/// (written through, the link kept). Refuses a target that exists and is not a regular file
+/// (a device node, a FIFO, a folder) and a link to nothing: renaming a temporary file over
+/// them would destroy what is there.
+pub fn write_target(path: &Path) -> Result<PathBuf, String> {
+    let link = std::fs::symlink_metadata(path).map(|m| m.file_type().is_symlink()).unwrap_or(false);
+    let target = if link {
+        path.canonicalize().map_err(|e| format!("is a link to a file that cannot be reached ({e})"))?
+    } else {
+        path.to_path_buf()
+    };
+    match std::fs::metadata(&target) {
+        Ok(m) if !m.is_file() => Err(format!(
+            "{}exists and is not a regular file (a device, a FIFO or a folder): skelight writes only regular \
+             files; choose another output",
+            if link { format!("its link target {} ", target.display()) } else { String::new() }
+        )),
+        _ => Ok(target),
+    }
+}
+
+/// Runs `write` on a temporary file beside `path`, then renames it into place (see
+/// [`write_target`] for what `path` may be).
 pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<(), String> {
+    let path = &write_target(path)?;
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     if !dir.exists() {
         std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use crate::checkpoint::Checkpoint;
 use crate::film::Film;
-use crate::imageio::{Image, ImageError};
+use crate::imageio::{Image, ImageError, ImageOutput};
 use crate::integrator::params::{ParamError, Params};
 use crate::integrator::{self, Integrator, Preparation, Progress, RenderError, RenderOptions};
 use crate::scene::load::LoadError;
@@ -186,9 +186,10 @@ pub fn fingerprint(scene: &Scene) -> u64 {
 /// Writes a film's image to OUT.exr, with its sample count in the header (for `merge`), and
 /// OUT.png, each atomically; returns the image.
 pub fn save_film(film: &Film, spp: u32, output: &Path, exposure: f32) -> Result<Image, JobError> {
+    let out = ImageOutput::of(output)?;
     let img = film.image();
-    img.save_exr_with(output, &[("skelight.spp", spp as f64)])?;
-    img.save_png(&output.with_extension("png"), exposure)?;
+    img.save_exr_with(&out.exr, &[("skelight.spp", spp as f64)])?;
+    img.save_png(&out.png, exposure)?;
     Ok(img)
 }
 
@@ -361,6 +362,7 @@ impl Reference {
         if job.shard.is_some() {
             return Err(JobError::Invalid("a reference renders all the samples; render shards with --shard".into()));
         }
+        let output = &ImageOutput::of(output)?.exr;
         let checkpoint = PathBuf::from(format!("{}.ckpt", output.display()));
         let mut resume = None;
         let mut finished = false;

@@ -23,7 +23,7 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use crate::film::Film;
-use crate::imageio::{Annotations, Image, ImageError};
+use crate::imageio::{Annotations, Image, ImageError, ImageOutput};
 
 /// Which slice of a render's samples to take: `index` of `count` (0-based).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -150,9 +150,10 @@ impl ShardOutput {
     /// Writes the image (viewable like any render) with the manifest and film in its header,
     /// atomically, and a PNG beside it.
     pub fn save(&self, path: &Path, exposure: f32) -> Result<Image, ShardError> {
+        let out = ImageOutput::of(path)?;
         let img = self.film.image();
-        img.save_exr_annotated(path, &self.annotations())?;
-        img.save_png(&path.with_extension("png"), exposure)?;
+        img.save_exr_annotated(&out.exr, &self.annotations())?;
+        img.save_png(&out.png, exposure)?;
         Ok(img)
     }
 

@@ -341,13 +341,19 @@ fn huge_coordinates_are_refused() {
     assert!(load(&p, &[]).is_ok());
 }
 
-/// A one-triangle glTF around `nodes` and the index accessor's component type.
-fn triangle_gltf(nodes: &str, index_type: u32) -> String {
+/// The buffer of [`triangle_gltf`]: three positions, then indices 0, 0, 0 of any type.
+fn triangle_bin() -> Vec<u8> {
     let mut bin = Vec::new();
     for v in [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
         bin.extend_from_slice(&v.to_le_bytes());
     }
     bin.extend_from_slice(&[0u8; 12]);
+    bin
+}
+
+/// A one-triangle glTF around `nodes` and the index accessor's component type.
+fn triangle_gltf(nodes: &str, index_type: u32) -> String {
+    let bin = triangle_bin();
     format!(
         r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": {nodes},
   "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}}],
@@ -428,4 +434,77 @@ fn thin_lens_parameters_out_of_range_are_named() {
     let p = d.file("neg.toml", toml("-0.5", "2.0").as_bytes());
     assert_mentions(&load_err(&p), &["neg.toml", "aperture_radius"]);
     assert!(load(&d.file("ok.toml", toml("0.1", "2.0").as_bytes()), &[]).is_ok());
+}
+
+/// Issue 59, "a missing file called something else": with a scene path relative to the
+/// working directory, a missing mesh or include was reported as leaving the scene folder.
+#[test]
+fn a_missing_file_of_a_relative_scene_path_is_reported_missing() {
+    let d = Dir::new("relative-missing");
+    d.file("m.xml", scene(r#"<shape type="obj"><string name="filename" value="missing.obj"/></shape>"#).as_bytes());
+    d.file("i.xml", scene(r#"<include filename="missing.xml"/>"#).as_bytes());
+    // nextest runs each test in its own process: the working directory is ours.
+    std::env::set_current_dir(&d.0).unwrap();
+    for (file, missing) in [("m.xml", "missing.obj"), ("i.xml", "missing.xml")] {
+        let msg = load_err(Path::new(file));
+        assert_mentions(&msg, &[file, missing, "not found"]);
+        assert!(!msg.contains("leaves"), "{msg}");
+    }
+}
+
+/// Issue 59, "files read outside the scene folder": a glTF URI escaping by percent-encoding
+/// or through a link, an MTL map climbing out of its OBJ's folder, an include linked out.
+#[test]
+fn files_outside_the_scene_folder_are_refused_after_decoding_and_links() {
+    let d = Dir::new("escape2");
+    let gltf = triangle_gltf(r#"[{"mesh": 0}]"#, 5125);
+    let start = gltf.find("data:").unwrap();
+    let end = start + gltf[start..].find('"').unwrap();
+    let with_uri = |uri: &str| format!("{}{uri}{}", &gltf[..start], &gltf[end..]);
+    d.file("outside.bin", &[0u8; 48]);
+    let p = d.file("in/pct.gltf", with_uri("%2e%2e/outside.bin").as_bytes());
+    assert_mentions(&load_err(&p), &["pct.gltf", "leaves the scene folder"]);
+    std::os::unix::fs::symlink(d.0.join("outside.bin"), d.0.join("in/link.bin")).unwrap();
+    let p = d.file("in/link.gltf", with_uri("link.bin").as_bytes());
+    assert_mentions(&load_err(&p), &["link.gltf", "leaves the scene folder"]);
+    // Inside the folder, a percent-encoded name still loads.
+    d.file("in/a b.bin", &triangle_bin());
+    let p = d.file("in/space.gltf", with_uri("a%20b.bin").as_bytes());
+    assert_eq!(load(&p, &[]).unwrap().triangle_count(), 1);
+
+    d.file("tex.png", b"not read");
+    d.file("in/m.mtl", b"newmtl m\nKd 0.5 0.5 0.5\nmap_Kd ../tex.png\n");
+    let p = d.file("in/m.obj", b"mtllib m.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    assert_mentions(&load_err(&p), &["m.obj", "texture '../tex.png'", "leaves the scene folder"]);
+    d.file("in/abs.mtl", b"newmtl m\nmap_Kd /etc/hostname\n");
+    let p = d.file("in/abs.obj", b"mtllib abs.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    assert_mentions(&load_err(&p), &["absolute"]);
+
+    d.file("other.xml", scene("").as_bytes());
+    std::os::unix::fs::symlink(d.0.join("other.xml"), d.0.join("in/linked.xml")).unwrap();
+    let p = d.file("in/inc.xml", scene(r#"<include filename="linked.xml"/>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["inc.xml:", "leaves the scene folder"]);
+}
+
+/// Issue 59, "endless inputs": a FIFO as the scene, an include or a mesh blocked the load
+/// forever; a link to /dev/zero was read until memory ran out.
+#[test]
+fn fifos_and_devices_are_not_read_as_scene_files() {
+    let d = Dir::new("fifo");
+    let fifo = d.0.join("pipe.xml");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    // A load that blocks on the FIFO fails the test instead of hanging the suite (seen
+    // blocking before the fix).
+    let load_err_in_time = |p: PathBuf| {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || tx.send(load_err(&p)));
+        rx.recv_timeout(std::time::Duration::from_secs(30)).expect("the load blocked on a FIFO")
+    };
+    assert_mentions(&load_err_in_time(fifo), &["pipe.xml", "not a regular file"]);
+    let p = d.file("inc.xml", scene(r#"<include filename="pipe.xml"/>"#).as_bytes());
+    assert_mentions(&load_err_in_time(p), &["inc.xml:", "pipe.xml", "not a regular file"]);
+    std::os::unix::fs::symlink("/dev/zero", d.0.join("zero.obj")).unwrap();
+    let p =
+        d.file("zero.xml", scene(r#"<shape type="obj"><string name="filename" value="zero.obj"/></shape>"#).as_bytes());
+    assert_mentions(&load_err(&p), &["zero.xml:", "zero.obj", "leaves the scene folder"]);
 }

@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use super::{confined_path, LoadError};
+use super::{confined_file, LoadError};
 use crate::boundary::catch_panic;
 use crate::camera::{Camera, FovAxis, Lens};
 use crate::color::Rgb;
@@ -188,8 +188,12 @@ fn read_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
             gltf::image::Source::Uri { uri, .. } => Some(uri.to_string()),
             _ => None,
         }));
+    // The importer percent-decodes a URI before it opens it: check the decoded path, links
+    // resolved (`%2e%2e/x` is `../x`).
     for uri in uris.filter(|u| !u.starts_with("data:")) {
-        confined_path(dir, &uri).map_err(&err)?;
+        let decoded =
+            percent_decode(&uri).ok_or_else(|| err(format!("URI '{uri}' is not valid percent-encoded UTF-8")))?;
+        confined_file(dir, dir, &decoded).map_err(&err)?;
     }
     let (document, buffers, images) = gltf::import(path).map_err(|e| err(format!("cannot load glTF data: {e}")))?;
     let mut desc = SceneDescription {
@@ -301,4 +305,22 @@ fn read_gltf(path: &Path) -> Result<SceneDescription, LoadError> {
         desc.lights.push(Light::Constant { radiance: Rgb::WHITE });
     }
     Ok(desc)
+}
+
+/// A URI's percent-escapes decoded (RFC 3986), or None where an escape or the result is invalid.
+fn percent_decode(uri: &str) -> Option<String> {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = std::str::from_utf8(bytes.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
 }

@@ -15,7 +15,7 @@ mod depth;
 mod emitter;
 mod sensor;
 
-use super::{confined_path, LoadError};
+use super::{confined_file, LoadError};
 use crate::camera::FovAxis;
 use crate::color::{rgb, srgb_to_linear, Rgb};
 use crate::geometry::Sphere;
@@ -433,16 +433,7 @@ impl Loader {
     /// File path relative to the current file, refusing paths that leave the scene folder.
     fn resolve(&self, n: Node, name: &str) -> R<PathBuf> {
         let base = self.file.parent().unwrap_or(Path::new("."));
-        let p = confined_path(base, name).map_err(|e| self.err(n, e))?;
-        let canon_root = self.root.canonicalize().unwrap_or(self.root.clone());
-        let canon = p.canonicalize().unwrap_or(p.clone());
-        if !canon.starts_with(&canon_root) {
-            return Err(self.err(n, format!("'{name}' leaves the scene folder {}", self.root.display())));
-        }
-        if !p.exists() {
-            return Err(self.err(n, format!("file '{}' not found", p.display())));
-        }
-        Ok(p)
+        confined_file(&self.root, base, name).map_err(|e| self.err(n, e))
     }
 
     // ----- textures ---------------------------------------------------------------------

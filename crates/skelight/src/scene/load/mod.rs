@@ -57,10 +57,41 @@ pub(crate) fn confined_path(base: &Path, name: &str) -> Result<PathBuf, String> 
     Ok(base.join(rel))
 }
 
+/// The file `name` (relative to `base`) that a scene file names, confined to the folder
+/// `root`: missing files are reported missing, the path is resolved (links followed) before
+/// the confinement check, and only a regular file is accepted (a FIFO would block the load
+/// forever, a device such as /dev/zero would be read until memory runs out).
+pub(crate) fn confined_file(root: &Path, base: &Path, name: &str) -> Result<PathBuf, String> {
+    let p = confined_path(base, name)?;
+    let resolved = match p.canonicalize() {
+        Ok(c) => c,
+        Err(_) if std::fs::symlink_metadata(&p).is_ok() => {
+            return Err(format!("'{name}' is a link to a file that does not exist"))
+        }
+        Err(_) => return Err(format!("file '{}' not found", p.display())),
+    };
+    let root = if root.as_os_str().is_empty() { Path::new(".") } else { root };
+    let canon_root = root.canonicalize().unwrap_or_else(|_| root.to_path_buf());
+    if !resolved.starts_with(&canon_root) {
+        return Err(format!(
+            "'{name}' leaves the scene folder {} (it resolves to {})",
+            root.display(),
+            resolved.display()
+        ));
+    }
+    if !std::fs::metadata(&resolved).is_ok_and(|m| m.is_file()) {
+        return Err(format!("'{name}' is not a regular file (a folder, a FIFO or a device)"));
+    }
+    Ok(p)
+}
+
 /// Loads a scene description by file extension (`-D name=value` pairs go to Mitsuba files).
 pub fn load_description(path: &Path, defines: &[(String, String)]) -> Result<SceneDescription, LoadError> {
     if !path.exists() {
         return Err(LoadError::at(path, 0, "file not found"));
+    }
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return Err(LoadError::at(path, 0, "not a regular file (a folder, a FIFO or a device): a scene is a file"));
     }
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let root = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")).to_path_buf();

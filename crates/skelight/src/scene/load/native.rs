@@ -301,8 +301,14 @@ fn mtl_material(
     base: &Path,
     m: &MtlMaterial,
 ) -> Result<(Material, Option<Texture>, Option<Rgb>), LoadError> {
+    // An MTL's maps stay in its OBJ's folder, whoever names the OBJ.
+    let map = |ctx: &mut Ctx, f: &str| -> Result<Texture, LoadError> {
+        let p = super::confined_file(base, base, f)
+            .map_err(|e| ctx.err(format!("material '{}', texture '{f}': {e}", m.name)))?;
+        ctx.bitmap(Path::new(""), &p.to_string_lossy())
+    };
     let kd = match &m.map_kd {
-        Some(f) => ctx.bitmap(base, f)?,
+        Some(f) => map(ctx, f)?,
         None => Texture::Constant(m.kd.unwrap_or(Rgb::splat(0.5))),
     };
     let ks = m.ks.unwrap_or(Rgb::BLACK);
@@ -313,10 +319,10 @@ fn mtl_material(
     };
     let mut mat = Material::new(m.name.clone(), bsdf);
     if let Some(b) = &m.map_bump {
-        mat.perturbation = Some(Perturbation::Bump { height: ctx.bitmap(base, b)?, scale: 1.0 });
+        mat.perturbation = Some(Perturbation::Bump { height: map(ctx, b)?, scale: 1.0 });
     }
     let alpha = match (&m.map_d, m.d) {
-        (Some(f), _) => Some(ctx.bitmap(base, f)?),
+        (Some(f), _) => Some(map(ctx, f)?),
         (None, Some(d)) if d < 1.0 => Some(Texture::constant(d.max(0.0))),
         _ => None,
     };

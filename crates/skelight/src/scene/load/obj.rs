@@ -95,11 +95,13 @@ pub fn load_obj(path: &Path) -> Result<ObjFile, LoadError> {
             "mtllib" => {
                 let name = parts.join(" ");
                 match super::confined_path(dir, &name) {
-                    Ok(p) if p.exists() => file.materials.extend(load_mtl(&p)?),
-                    Ok(p) => {
+                    Ok(p) if !p.exists() => {
                         eprintln!("warning: {}:{line}: material library {} not found", path.display(), p.display())
                     }
-                    Err(e) => return Err(LoadError::at(path, line, e)),
+                    _ => {
+                        let p = super::confined_file(dir, dir, &name).map_err(|e| LoadError::at(path, line, e))?;
+                        file.materials.extend(load_mtl(&p)?)
+                    }
                 }
             }
             "f" => {
