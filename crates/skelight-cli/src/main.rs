@@ -16,6 +16,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use skelight::estimators::registry;
 use skelight::eval;
+use skelight::guided::analysis::AnalysisBounds;
 use skelight::imageio::Image;
 use skelight::integrator::{self, RenderOptions};
 use skelight::job::JobSpec;
@@ -45,7 +46,8 @@ enum Command {
         /// Also write a false-colour relative-error image (black 0 → red ≥ --max-error).
         #[arg(long)]
         error_image: Option<PathBuf>,
-        #[arg(long, default_value_t = 0.5)]
+        /// The relative error shown red (positive).
+        #[arg(long, default_value = "0.5", value_parser = parse_positive)]
         max_error: f32,
     },
     /// Equal-time comparison of estimators against a reference, with a report.
@@ -69,11 +71,13 @@ enum Command {
         /// Scene parameter substitution, as Mitsuba's -D name=value.
         #[arg(short = 'D', value_parser = parse_define)]
         define: Vec<(String, String)>,
-        /// Analyse only this box of the scene, XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (world units),
-        /// instead of the scene's bounds grown by 10 %: for a building inside a huge ground
-        /// plane or sky, such as classroom.
-        #[arg(long, value_parser = parse_box)]
-        bounds: Option<[[f64; 3]; 2]>,
+        /// The box analysed: occupied (the default, as the guided estimators' `bounds`: the
+        /// space around the camera and the lights, found by rays, or the scene's box where
+        /// that is most of it; for a building inside a huge ground plane or sky, such as
+        /// classroom), scene (the scene's bounds grown by 10 %), or XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX
+        /// in world units.
+        #[arg(long, default_value = "occupied", value_parser = parse_bounds, allow_hyphen_values = true)]
+        bounds: AnalysisBounds,
         /// Analyse only the empty space enclosed by the scene (drop the air joined to the
         /// grid's border, such as the shell around a closed building).
         #[arg(long)]
@@ -210,9 +214,10 @@ enum BenchKind {
         /// As `skelight skeleton --resolution`: N or W,H,D.
         #[arg(long, default_value = "128", value_parser = parse_grid_resolution)]
         resolution: Resolution,
-        /// As `skelight skeleton --bounds`.
-        #[arg(long, value_parser = parse_box)]
-        bounds: Option<[[f64; 3]; 2]>,
+        /// As `skelight skeleton --bounds`, but the scene's box by default (the figures of
+        /// docs/benchmarks.md).
+        #[arg(long, default_value = "scene", value_parser = parse_bounds, allow_hyphen_values = true)]
+        bounds: AnalysisBounds,
         #[arg(long)]
         enclosed_only: bool,
         /// As `skelight skeleton --keep-all-space` (by default, as there, only the space
@@ -248,7 +253,7 @@ struct SceneSetup {
     #[arg(long, num_args = 2, value_names = ["W", "H"])]
     resolution: Option<Vec<usize>>,
     /// Maximum path depth (Mitsuba's max_depth; -1 = unbounded). Overrides the scene.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     max_depth: Option<i32>,
     /// Ray-tracing backend: bvh (built in) or embree (when compiled with --features embree).
     #[arg(long, default_value = "bvh")]
@@ -293,13 +298,8 @@ fn parse_grid_resolution(s: &str) -> Result<Resolution, String> {
     }
 }
 
-fn parse_box(s: &str) -> Result<[[f64; 3]; 2], String> {
-    let v: Vec<f64> =
-        s.split(',').map(|t| t.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
-    match v[..] {
-        [a, b, c, d, e, f] if v.iter().all(|x| x.is_finite()) && a < d && b < e && c < f => Ok([[a, b, c], [d, e, f]]),
-        _ => Err("expected XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX: six finite numbers, each minimum below its maximum".into()),
-    }
+fn parse_bounds(s: &str) -> Result<AnalysisBounds, String> {
+    AnalysisBounds::parse(s)
 }
 
 fn parse_heuristic(s: &str) -> Result<Heuristic, String> {
@@ -346,7 +346,7 @@ fn bench(what: BenchKind) -> Result<()> {
             let scene = load_scene(Some(&scene), &[])?;
             let settings = AnalysisSettings {
                 resolution,
-                region: bounds,
+                region: bounds.region(&scene),
                 enclosed_only,
                 sources: skeleton::sources(&scene),
                 keep_all_space,
@@ -435,22 +435,36 @@ pub(crate) fn parse_device(s: &str) -> Result<skelight::job::Device, String> {
 }
 
 /// Durations as `300` (seconds), `90s`, `5m`, `2h` or `1.5h`.
+/// The longest time budget: three years, past any render and within what a `Duration` holds.
+const MAX_SECONDS: f64 = 1e8;
+
 fn parse_duration(s: &str) -> Result<Duration, String> {
-    let (num, unit) = match s.trim().char_indices().find(|(_, c)| c.is_ascii_alphabetic()) {
-        Some((i, _)) => (&s.trim()[..i], &s.trim()[i..]),
-        None => (s.trim(), "s"),
-    };
+    let t = s.trim();
+    // The unit is a trailing word, so that an exponent (1e3) stays part of the number.
+    let split = t.trim_end_matches(|c: char| c.is_ascii_alphabetic()).len();
+    let (num, unit) = t.split_at(split);
     let v: f64 = num.trim().parse().map_err(|_| format!("'{s}' is not a duration (e.g. 300, 90s, 5m, 2h)"))?;
     let secs = match unit {
-        "s" => v,
+        "" | "s" => v,
         "m" | "min" => v * 60.0,
         "h" => v * 3600.0,
         other => return Err(format!("unknown time unit '{other}' in '{s}' (s, m or h)")),
     };
-    if !(secs > 0.0 && secs < 1e8) {
-        return Err(format!("duration '{s}' must be positive"));
+    if !(secs > 0.0 && secs <= MAX_SECONDS) {
+        return Err(format!("duration '{s}' must be above 0 and at most {MAX_SECONDS:e} s"));
     }
     Ok(Duration::from_secs_f64(secs))
+}
+
+/// A finite number (an exposure in stops).
+pub(crate) fn parse_finite(s: &str) -> Result<f32, String> {
+    s.trim().parse::<f32>().ok().filter(|v| v.is_finite()).ok_or_else(|| format!("'{s}' is not a finite number"))
+}
+
+/// A finite positive number.
+fn parse_positive(s: &str) -> Result<f32, String> {
+    parse_finite(s)?;
+    s.trim().parse::<f32>().ok().filter(|v| *v > 0.0).ok_or_else(|| format!("'{s}' must be above 0"))
 }
 
 /// Writes a text file through a temporary name, with an error naming the file.
@@ -661,7 +675,7 @@ fn main() {
             let settings = AnalysisSettings {
                 resolution,
                 constraint,
-                region: bounds,
+                region: bounds.region(&scene),
                 enclosed_only,
                 anchors,
                 sources,
@@ -742,6 +756,12 @@ fn main() {
             );
             let b = s.bounds();
             println!("bounds {:?} – {:?}", b.min, b.max);
+            match skelight::guided::analysis::occupied_box(&s) {
+                Some([lo, hi]) => {
+                    println!("analysed box (bounds=occupied, around the camera and lights): {lo:.3?} – {hi:.3?}")
+                }
+                None => println!("analysed box (bounds=occupied): the scene's bounds grown by 10 %"),
+            }
             Ok(())
         })(),
     };

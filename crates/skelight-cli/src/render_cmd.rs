@@ -45,7 +45,7 @@ pub(crate) struct RenderArgs {
     #[command(flatten)]
     pub(crate) setup: SceneSetup,
     /// PNG exposure in stops.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value = "0", value_parser = crate::parse_finite, allow_negative_numbers = true)]
     pub(crate) exposure: f32,
     /// Scene parameter substitution, as Mitsuba's -D name=value.
     #[arg(short = 'D', value_parser = parse_define)]
@@ -303,6 +303,9 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
     // The CPU's estimator, or the GPU's kernels (gpu_cmd::job_renderer).
     let mut render = crate::gpu_cmd::job_renderer(&job)?;
     let r = job.run_with(args.quiet, |job, scene, on_pass| render(job, scene, None, on_pass))?;
+    if r.spp() == 0 {
+        bail!("the time budget ended before the first sample: nothing was rendered and nothing written; give a longer --time");
+    }
     let img = r.save(&args.output, args.exposure).with_context(|| format!("writing {}", args.output.display()))?;
     summary(&r, job.scene.settings.width * job.scene.settings.height, &img, &args.output);
     if let Some(dir) = &args.debug {

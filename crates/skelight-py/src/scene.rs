@@ -161,7 +161,7 @@ impl Scene {
         let a = py
             .allow_threads(move || {
                 let scene = scene.read().unwrap_or_else(|e| e.into_inner());
-                let settings = analysis_settings(&scene, &GuideSettings { resolution });
+                let settings = analysis_settings(&scene, &GuideSettings { resolution, ..Default::default() });
                 skelight_shape::pipeline::analyse(&scene_triangles(&scene), &settings)
             })
             .map_err(error)?;

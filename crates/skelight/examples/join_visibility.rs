@@ -58,7 +58,7 @@ fn main() {
     let max_depth = scene.settings.max_depth;
     let deepest = skelight::estimators::resampling::join::deepest_join(max_depth);
     let p = Params::new("skelbpt", skelight::estimators::find("skelbpt").unwrap().params, &[]).unwrap();
-    let settings = GuideSettings { resolution: p.int("resolution") as usize };
+    let settings = GuideSettings::from_params(&p);
     let skel = NodeSelection::prepare(&scene, &settings, p.float("acceptance"), max_depth, &mut Preparation::default())
         .expect("skelbpt prepares");
     let mut paths = LightPaths::default();

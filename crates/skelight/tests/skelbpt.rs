@@ -273,7 +273,7 @@ fn check_average(
 /// for the first pass.
 fn node_selection(scene: &skelight::scene::Scene) -> (NodeSelection, Preparation) {
     let p = Params::new("skelbpt", registry::find("skelbpt").unwrap().params, &[]).unwrap();
-    let settings = GuideSettings { resolution: p.int("resolution") as usize };
+    let settings = GuideSettings::from_params(&p);
     let mut prep = Preparation::default();
     let nodes = NodeSelection::prepare(scene, &settings, p.float("acceptance"), scene.settings.max_depth, &mut prep)
         .expect("the door corner has a skeleton");

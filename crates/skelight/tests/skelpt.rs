@@ -258,7 +258,7 @@ fn importance_from_later_bounces_carries_the_reflected_power() {
     let rays = 100_000;
     let reflected = |reflectance: f32| {
         let scene = grey(reflectance);
-        let (guide, _) = guide_for(&scene, &GuideSettings { resolution: 64 }).expect("analysis");
+        let (guide, _) = guide_for(&scene, &GuideSettings { resolution: 64, ..Default::default() }).expect("analysis");
         let first = incident_power(&scene, &guide, rays, 1, 7);
         let two = incident_power(&scene, &guide, rays, 2, 7);
         for (node, (a, b)) in first.iter().zip(&two).enumerate() {
@@ -290,7 +290,7 @@ fn one_bounce_is_the_first_hit_estimate() {
     use skelight::guided::importance::incident_power;
     use skelight::guided::{guide_for, GuideSettings};
     let scene = skelight::scene::builtin::two_rooms();
-    let (guide, _) = guide_for(&scene, &GuideSettings { resolution: 64 }).expect("analysis");
+    let (guide, _) = guide_for(&scene, &GuideSettings { resolution: 64, ..Default::default() }).expect("analysis");
     let (rays, seed) = (20_000usize, 11);
     let (sums, _) = first_hit_power(&scene, &guide, rays, seed);
     let walked = incident_power(&scene, &guide, rays, 1, seed);
@@ -329,7 +329,9 @@ fn each_importance_point_is_one_target() {
 fn the_analysis_keeps_regions_portals_and_the_raw_skeleton() {
     let mut scene = skelight::scene::builtin::two_rooms();
     scene.set_resolution(16, 16);
-    let (guide, _) = skelight::guided::guide_for(&scene, &skelight::guided::GuideSettings { resolution: 64 }).unwrap();
+    let (guide, _) =
+        skelight::guided::guide_for(&scene, &skelight::guided::GuideSettings { resolution: 64, ..Default::default() })
+            .unwrap();
     assert!(guide.raw.nodes.len() >= guide.graph.nodes.len(), "the raw skeleton has fewer nodes than the filtered");
     assert!(guide.labelling.count >= 2 && !guide.portals.is_empty(), "two rooms and a door: regions and a portal");
     let graph = guide.region_graph();

@@ -129,6 +129,7 @@ pub const PARAMS: &[ParamSpec] = &[
               borders); 0 switches hard at the border, as the thesis did",
     },
     crate::integrator::params::SKELETON_RESOLUTION,
+    crate::integrator::params::SKELETON_BOUNDS,
 ];
 
 /// The candidate selection probabilities the learned mode chooses among; 0 turns portal
@@ -143,7 +144,8 @@ pub struct PortalPathTracer {
     pub bottleneck: f64,
     pub fit_quads: bool,
     pub blend: f32,
-    pub resolution: usize,
+    /// The analysis' resolution and box.
+    pub guide: GuideSettings,
     pub portals: Option<std::path::PathBuf>,
     pub by_area: bool,
     pub learn: bool,
@@ -195,7 +197,7 @@ impl PortalPathTracer {
             bottleneck: p.float("bottleneck"),
             fit_quads: p.choice("portal_shape") == "quad",
             blend: p.float("blend") as f32,
-            resolution: p.int("resolution") as usize,
+            guide: GuideSettings::from_params(p),
             portals: p.path("portals"),
             by_area: p.choice("portal_sampling") == "area",
             learn: p.bool("learn"),
@@ -503,7 +505,7 @@ impl PortalPathTracer {
 
     /// The analysis' regions, portals and routes.
     fn analysed(&self, scene: &Scene, prep: &mut Preparation) -> Result<Source, PrepareError> {
-        let guide = prepare_guide(scene, &GuideSettings { resolution: self.resolution }, prep)?;
+        let guide = prepare_guide(scene, &self.guide, prep)?;
         let clock = std::time::Instant::now();
         let mut regions = Regions::joined(Arc::clone(&guide), self.bottleneck);
         regions.prepare_blend(self.blend);
@@ -537,8 +539,14 @@ impl Integrator for PortalPathTracer {
             format!(" portals={} portal_sampling={sampling}", p.display())
         });
         format!(
-            "portalpt strategy=paths c_portal={} bottleneck={} portal_shape={} blend={} resolution={}{portals} learn={} cells={}",
-            self.c_portal, self.bottleneck, if self.fit_quads { "quad" } else { "faces" }, self.blend, self.resolution, self.learn, self.cells
+            "portalpt strategy=paths c_portal={} bottleneck={} portal_shape={} blend={} {}{portals} learn={} cells={}",
+            self.c_portal,
+            self.bottleneck,
+            if self.fit_quads { "quad" } else { "faces" },
+            self.blend,
+            self.guide.describe(),
+            self.learn,
+            self.cells
         )
     }
 

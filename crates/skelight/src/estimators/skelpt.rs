@@ -45,6 +45,7 @@ pub const PARAMS: &[ParamSpec] = &[
               below 1, or directions no lobe reaches and delta lobes would never be drawn (a bias)",
     },
     crate::integrator::params::SKELETON_RESOLUTION,
+    crate::integrator::params::SKELETON_BOUNDS,
     ParamSpec {
         name: "importance_rays",
         kind: ParamKind::Int { min: 1, max: 1 << 28 },
@@ -188,10 +189,10 @@ impl Integrator for SkeletonPathTracer {
 
     fn describe(&self) -> String {
         format!(
-            "skelpt strength={} c_skel={} resolution={} importance_rays={} importance_bounces={} importance_nodes={} adaptive={}",
+            "skelpt strength={} c_skel={} {} importance_rays={} importance_bounces={} importance_nodes={} adaptive={}",
             self.strength,
             self.c_skel,
-            self.settings.resolution,
+            self.settings.guide.describe(),
             self.settings.importance_rays,
             self.settings.importance_bounces,
             self.settings.importance_nodes,

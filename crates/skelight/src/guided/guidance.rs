@@ -22,18 +22,18 @@ const IMPORTANCE_SEED: u64 = 0x5ce1_e70f;
 /// How the guidance is prepared (skelpt's parameters of the same names).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GuidanceSettings {
-    pub resolution: usize,
+    pub guide: GuideSettings,
     pub importance_rays: usize,
     pub importance_bounces: u32,
     pub importance_nodes: usize,
 }
 
 impl GuidanceSettings {
-    /// From parameters that declare `resolution`, `importance_rays`, `importance_bounces`
+    /// From parameters that declare `resolution`, `bounds`, `importance_rays`, `importance_bounces`
     /// and `importance_nodes` (skelpt's).
     pub fn from_params(p: &Params) -> GuidanceSettings {
         GuidanceSettings {
-            resolution: p.int("resolution") as usize,
+            guide: GuideSettings::from_params(p),
             importance_rays: p.int("importance_rays") as usize,
             importance_bounces: p.int("importance_bounces") as u32,
             importance_nodes: p.int("importance_nodes") as usize,
@@ -57,7 +57,7 @@ impl Guidance {
         settings: &GuidanceSettings,
         prep: &mut Preparation,
     ) -> Result<Option<Guidance>, PrepareError> {
-        let guide = prepare_guide(scene, &GuideSettings { resolution: settings.resolution }, prep)?;
+        let guide = prepare_guide(scene, &settings.guide, prep)?;
         let lap = std::time::Instant::now();
         let values =
             incident_power(scene, &guide, settings.importance_rays, settings.importance_bounces, IMPORTANCE_SEED);

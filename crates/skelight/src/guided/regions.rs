@@ -548,7 +548,7 @@ mod tests {
 
     fn two_rooms() -> (Scene, Regions) {
         let scene = crate::scene::builtin::two_rooms();
-        let (guide, _) = guide_for(&scene, &GuideSettings { resolution: 48 }).expect("analyses");
+        let (guide, _) = guide_for(&scene, &GuideSettings { resolution: 48, ..Default::default() }).expect("analyses");
         (scene, Regions::new(guide))
     }
 

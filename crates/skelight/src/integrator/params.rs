@@ -19,6 +19,8 @@ pub enum ParamKind {
     /// A file's path (empty: none), read by the estimator when it prepares, which names the
     /// file in its errors.
     Path,
+    /// The box an empty-space analysis covers ([`AnalysisBounds::parse`]).
+    Bounds,
 }
 
 /// One parameter an estimator declares.
@@ -37,7 +39,17 @@ pub const SKELETON_RESOLUTION: ParamSpec = ParamSpec {
     name: "resolution",
     kind: ParamKind::Int { min: 8, max: 1024 },
     default: "128",
-    doc: "voxels on the longest side of the analysed box (the scene's bounds grown by 10 %)",
+    doc: "voxels on the longest side of the analysed box (see bounds)",
+};
+
+/// The box of the scene the empty-space analysis covers, as every skeleton-guided estimator
+/// takes it (issue 68 item 5).
+pub const SKELETON_BOUNDS: ParamSpec = ParamSpec {
+    name: "bounds",
+    kind: ParamKind::Bounds,
+    default: "occupied",
+    doc: "the analysed box: occupied (around the camera and the lights, found by rays; the scene's box where \
+          that is most of it), scene (the scene's bounds grown by 10 %), or XMIN;YMIN;ZMIN;XMAX;YMAX;ZMAX",
 };
 
 /// The MIS heuristic between bidirectional strategies (`bpt` and the estimators built on it).
@@ -47,6 +59,43 @@ pub const MIS_HEURISTIC: ParamSpec = ParamSpec {
     default: "balance",
     doc: "MIS heuristic between the (s, t) strategies",
 };
+
+/// Which box of the scene the empty-space analysis covers (the `bounds` parameter; the box
+/// itself is found in `guided::analysis`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AnalysisBounds {
+    /// The space around the camera and the lights ([`occupied_box`]); the scene's box where
+    /// that is most of it.
+    Occupied,
+    /// The scene's bounds grown by 10 % (the thesis').
+    Scene,
+    /// A box in world units, `[min, max]`.
+    Box([[f64; 3]; 2]),
+}
+
+impl AnalysisBounds {
+    /// `occupied`, `scene`, or six numbers XMIN YMIN ZMIN XMAX YMAX ZMAX separated by
+    /// commas, semicolons or spaces (`;` where the value sits in a comma-separated list).
+    pub fn parse(text: &str) -> Result<AnalysisBounds, String> {
+        match text.trim() {
+            "occupied" => return Ok(AnalysisBounds::Occupied),
+            "scene" => return Ok(AnalysisBounds::Scene),
+            _ => {}
+        }
+        let v: Vec<f64> = text
+            .split(|c: char| c == ',' || c == ';' || c.is_whitespace())
+            .filter(|s| !s.is_empty())
+            .map(|s| s.parse::<f64>().map_err(|_| format!("'{s}' is not a number")))
+            .collect::<Result<_, _>>()?;
+        if v.len() != 6 {
+            return Err(format!("'{text}' is neither occupied, scene nor six numbers XMIN;YMIN;ZMIN;XMAX;YMAX;ZMAX"));
+        }
+        if v.iter().any(|x| !x.is_finite()) || (0..3).any(|k| v[k] >= v[k + 3]) {
+            return Err(format!("'{text}' is not a box: each minimum must be finite and below its maximum"));
+        }
+        Ok(AnalysisBounds::Box([[v[0], v[1], v[2]], [v[3], v[4], v[5]]]))
+    }
+}
 
 /// A checked parameter value.
 #[derive(Clone, Debug, PartialEq)]
@@ -111,6 +160,7 @@ impl ParamSpec {
                 .find(|w| **w == t)
                 .map(|w| ParamValue::Choice(w))
                 .ok_or_else(|| format!("'{text}' is not one of {}", words.join(", "))),
+            ParamKind::Bounds => AnalysisBounds::parse(t).map(|_| ParamValue::Text(t.to_string())),
             ParamKind::Path => {
                 if t.contains('\0') {
                     return Err("a path cannot hold a NUL byte".into());
@@ -128,6 +178,7 @@ impl ParamSpec {
             ParamKind::Bool => "true/false".into(),
             ParamKind::Choice(words) => words.join("|"),
             ParamKind::Path => "a file's path (empty: none)".into(),
+            ParamKind::Bounds => "occupied|scene|XMIN;YMIN;ZMIN;XMAX;YMAX;ZMAX".into(),
         }
     }
 }
@@ -209,6 +260,14 @@ impl Params {
             ParamValue::Text(v) if v.is_empty() => None,
             ParamValue::Text(v) => Some(std::path::PathBuf::from(v)),
             other => panic!("parameter {name} is {other:?}, not a path"),
+        }
+    }
+
+    /// A [`ParamKind::Bounds`] parameter (checked when it was parsed).
+    pub fn bounds(&self, name: &str) -> AnalysisBounds {
+        match self.get(name) {
+            ParamValue::Text(v) => AnalysisBounds::parse(v).unwrap_or_else(|e| panic!("parameter {name}: {e}")),
+            other => panic!("parameter {name} is {other:?}, not a box"),
         }
     }
 

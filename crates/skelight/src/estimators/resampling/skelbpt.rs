@@ -65,6 +65,7 @@ pub const PARAMS: &[ParamSpec] = &[
         doc: "how each node's V, U and C distributions combine: the max heuristic folded in (the thesis), or balance",
     },
     crate::integrator::params::SKELETON_RESOLUTION,
+    crate::integrator::params::SKELETON_BOUNDS,
     crate::integrator::params::MIS_HEURISTIC,
     join::ONLY,
 ];
@@ -74,7 +75,8 @@ pub struct SkeletonBpt {
     pub candidates: usize,
     pub acceptance: f64,
     pub combination: Combination,
-    pub resolution: usize,
+    /// The analysis' resolution and box.
+    pub guide: GuideSettings,
     /// What it records (for per-distribution images).
     only: Only,
     /// The parameters it was made from (its per-distribution variants differ in `only`).
@@ -100,7 +102,7 @@ impl SkeletonBpt {
             candidates: p.int("candidates") as usize,
             acceptance: p.float("acceptance"),
             combination: Combination::parse(p.choice("combination")),
-            resolution: p.int("resolution") as usize,
+            guide: GuideSettings::from_params(p),
             only,
             params: p.clone(),
             prepared: None,
@@ -143,11 +145,11 @@ impl Integrator for SkeletonBpt {
     fn describe(&self) -> String {
         let only = self.only.name();
         format!(
-            "skelbpt candidates={} acceptance={} combination={} resolution={} heuristic={} only={only}",
+            "skelbpt candidates={} acceptance={} combination={} {} heuristic={} only={only}",
             self.candidates,
             self.acceptance,
             self.combination.name(),
-            self.resolution,
+            self.guide.describe(),
             format!("{:?}", self.bpt.heuristic).to_lowercase(),
         )
     }
@@ -160,7 +162,7 @@ impl Integrator for SkeletonBpt {
             prep.notes.push("the scene has no lights: plain bpt".into());
             return Ok(prep);
         }
-        let settings = GuideSettings { resolution: self.resolution };
+        let settings = self.guide;
         self.prepared =
             Some(NodeSelection::prepare(scene, &settings, self.acceptance, self.bpt.max_depth(scene), &mut prep)?);
         Ok(prep)
