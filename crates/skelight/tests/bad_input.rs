@@ -508,3 +508,40 @@ fn fifos_and_devices_are_not_read_as_scene_files() {
         d.file("zero.xml", scene(r#"<shape type="obj"><string name="filename" value="zero.obj"/></shape>"#).as_bytes());
     assert_mentions(&load_err(&p), &["zero.xml:", "zero.obj", "leaves the scene folder"]);
 }
+
+/// Issue 59, "a real file that fails": a `.serialized` shape with neither precision flag
+/// (Mitsuba 0.5 wrote such files) is single precision, as Mitsuba reads it; both flags set is
+/// an error.
+#[test]
+fn a_serialized_shape_without_precision_flags_is_single_precision() {
+    use std::io::Write;
+    let d = Dir::new("ser-flags");
+    let file = |flags: u32| {
+        let mut shape = flags.to_le_bytes().to_vec();
+        shape.extend_from_slice(b"tri\0");
+        shape.extend_from_slice(&3u64.to_le_bytes());
+        shape.extend_from_slice(&1u64.to_le_bytes());
+        for v in [0f32, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 3.0, 0.0] {
+            shape.extend_from_slice(&v.to_le_bytes());
+        }
+        for i in [0u32, 1, 2] {
+            shape.extend_from_slice(&i.to_le_bytes());
+        }
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(&shape).unwrap();
+        let mut bytes = vec![0x1C, 0x04, 0x04, 0x00];
+        bytes.extend(z.finish().unwrap());
+        bytes.extend_from_slice(&0u64.to_le_bytes());
+        bytes.extend_from_slice(&1u32.to_le_bytes());
+        d.file("m.serialized", &bytes);
+        let body = r#"<shape type="serialized"><string name="filename" value="m.serialized"/></shape>"#;
+        load(&d.file("s.xml", scene(body).as_bytes()), &[])
+    };
+    for flags in [0, 0x1000] {
+        let s = file(flags).unwrap_or_else(|e| panic!("flags {flags:#x}: {e}"));
+        assert_eq!(s.triangle_count(), 1);
+        let b = s.bounds();
+        assert!((b.max.x - 2.0).abs() < 1e-6 && (b.max.y - 3.0).abs() < 1e-6, "flags {flags:#x}: {b:?}");
+    }
+    assert_mentions(&file(0x3000).map(|_| ()).unwrap_err().to_string(), &["m.serialized", "both"]);
+}
