@@ -463,8 +463,7 @@ pub(crate) fn parse_finite(s: &str) -> Result<f32, String> {
 
 /// A finite positive number.
 fn parse_positive(s: &str) -> Result<f32, String> {
-    parse_finite(s)?;
-    s.trim().parse::<f32>().ok().filter(|v| *v > 0.0).ok_or_else(|| format!("'{s}' must be above 0"))
+    Some(parse_finite(s)?).filter(|v| *v > 0.0).ok_or_else(|| format!("'{s}' must be above 0"))
 }
 
 /// Writes a text file through a temporary name, with an error naming the file.

@@ -94,14 +94,13 @@ pub fn load_obj(path: &Path) -> Result<ObjFile, LoadError> {
             "usemtl" => current = Some(parts.join(" ")),
             "mtllib" => {
                 let name = parts.join(" ");
-                match super::confined_path(dir, &name) {
-                    Ok(p) if !p.exists() => {
-                        eprintln!("warning: {}:{line}: material library {} not found", path.display(), p.display())
+                // A missing library is warned (many exported OBJs name one they lack).
+                match super::confined_file(dir, dir, &name) {
+                    Ok(p) => file.materials.extend(load_mtl(&p)?),
+                    Err(e) if e.contains("not found") => {
+                        eprintln!("warning: {}:{line}: material library {e}", path.display())
                     }
-                    _ => {
-                        let p = super::confined_file(dir, dir, &name).map_err(|e| LoadError::at(path, line, e))?;
-                        file.materials.extend(load_mtl(&p)?)
-                    }
+                    Err(e) => return Err(LoadError::at(path, line, e)),
                 }
             }
             "f" => {
